@@ -1,0 +1,3 @@
+from tactilepipe.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,222 @@
+"""`tactilepipe <stage>`: every pipeline stage, usable with or without Snakemake.
+
+Each stage reads params.yaml (plus `--override '{"scale": "smoke"}'`, which is how Snakemake
+passes `--config` overrides on), and writes its outputs atomically. Imports are local to each
+stage so a job only pays for what it uses.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from tactilepipe.errors import TactilepipeError
+
+
+def _params(args) -> dict:
+    from tactilepipe.config import load_params
+    overrides = json.loads(args.override) if args.override else {}
+    if args.scale:
+        overrides["scale"] = args.scale
+    return load_params(args.params, overrides)
+
+
+def _progress(iterable, desc: str, total: int | None = None):
+    from tqdm import tqdm
+    return tqdm(iterable, desc=desc, total=total, unit="bag", file=sys.stderr,
+                disable=None, mininterval=1.0)
+
+
+# --- stages -----------------------------------------------------------------------------------
+
+def cmd_simulate(args) -> None:
+    p = _params(args)
+    out = Path(args.out_dir)
+    if args.what == "volume":
+        from tactilepipe.volume import simulate as sim
+        plan = sim.session_plan(p["simulate_volume"])
+        chosen = [l for l in plan if not args.lifts or l.name in args.lifts]
+        unknown = set(args.lifts or []) - {l.name for l in plan}
+        if unknown:
+            raise TactilepipeError(f"unknown lift names for this scale: {sorted(unknown)}")
+        for lift in _progress(chosen, "simulate volume"):
+            sim.write_lift_bag(out / f"{lift.name}.bag", lift, p["simulate_volume"], p["seed"])
+        if args.labels:
+            sim.write_session_labels(out, plan)
+    else:
+        from tactilepipe.drift import simulate as dsim
+        names = args.lifts or dsim.session_plan(p)
+        for name in _progress(names, "simulate drift"):
+            dsim.write_drift_bag(out / f"{name}.bag", name, p)
+
+
+def cmd_ingest(args) -> None:
+    from tactilepipe.shards import ingest_bag
+    for bag, shard in zip(args.bags[0::2], args.bags[1::2]):
+        info = ingest_bag(bag, shard)
+        print(json.dumps(info))
+
+
+def _session_lifts(p: dict, raw_root: Path, shard_root: Path):
+    import pandas as pd
+    from tactilepipe.volume.simulate import read_session_labels
+    rows = []
+    for session in p["volume_sessions"]:
+        for row in read_session_labels(raw_root / session):
+            stem = Path(row["bag"]).stem
+            rows.append({"lift": f"{session}/{stem}", "session": session, "volume_ml": row["volume_ml"],
+                         "set": row["set"], "shard": str(shard_root / session / f"{stem}.parquet")})
+    return pd.DataFrame(rows)
+
+
+def cmd_dataset(args) -> None:
+    from tactilepipe.atomic import write_parquet, write_text
+    from tactilepipe.volume.dataset import build_dataset
+    p = _params(args)
+    lifts = _session_lifts(p, Path(args.raw_root), Path(args.shard_root))
+    data, qc = build_dataset(lifts, p["segment"])
+    write_parquet(args.out, data)
+    write_text(args.qc, qc.to_csv(index=False))
+
+
+def cmd_split(args) -> None:
+    import pandas as pd
+    from tactilepipe.atomic import write_json
+    from tactilepipe.volume.folds import make_folds
+    p = _params(args)
+    lifts = pd.read_parquet(args.dataset, columns=["lift", "volume_ml", "set"]).drop_duplicates("lift")
+    f = p["folds"]
+    folds = make_folds(lifts, f["n_folds"], f["train_lifts_per_volume"], f["test_lifts_per_volume"],
+                       p["seed"], source=args.dataset)
+    write_json(args.out, folds)
+
+
+def cmd_train(args) -> None:
+    import pandas as pd
+    from tactilepipe.atomic import write_parquet, write_text
+    from tactilepipe.volume.mlp import MLPConfig
+    from tactilepipe.volume.train import fit_modality
+    p = _params(args)
+    if args.modality not in p["mlp"]["modalities"]:
+        raise TactilepipeError(f"unknown modality '{args.modality}' (params.yaml mlp.modalities: "
+                               f"{sorted(p['mlp']['modalities'])})")
+    data = pd.read_parquet(args.dataset)
+    folds = json.loads(Path(args.folds).read_text())
+    preds, summary = fit_modality(data, folds, p["mlp"]["modalities"][args.modality], p["volume_sensor"],
+                                  MLPConfig.from_params(p["mlp"]), p["seed"])
+    out = Path(args.out_dir)
+    write_parquet(out / "predictions.parquet", preds)
+    write_text(out / "folds.csv", summary.to_csv(index=False))
+
+
+def cmd_gridsearch(args) -> None:
+    import pandas as pd
+    from tactilepipe.atomic import write_text
+    from tactilepipe.volume.mlp import MLPConfig
+    from tactilepipe.volume.train import grid_search
+    p = _params(args)
+    grid = p["mlp"]["grid"]
+    data = pd.read_parquet(args.dataset)
+    folds = json.loads(Path(args.folds).read_text())
+    table = grid_search(data, folds[0], p["mlp"]["modalities"][grid["modality"]], p["volume_sensor"],
+                        MLPConfig.from_params(p["mlp"]), grid, p["seed"])
+    write_text(args.out, table.to_csv(index=False))
+
+
+def cmd_baseline(args) -> None:
+    import pandas as pd
+    from tactilepipe.atomic import write_json, write_parquet, write_text
+    from tactilepipe.volume.baseline import sweep
+    p = _params(args)
+    data = pd.read_parquet(args.dataset)
+    folds = json.loads(Path(args.folds).read_text())
+    res = sweep(data, folds, p["volume_sensor"], p["baseline"])
+    out = Path(args.out_dir)
+    write_parquet(out / "predictions.parquet", res["predictions"])
+    write_text(out / "folds.csv", res["summary"].to_csv(index=False))
+    write_text(out / "mu_curve.csv", res["curve"].to_csv(index=False))
+    write_json(out / "mu.json", {"mu_star": res["mu_star"], "optima": res["optima"].to_dict("records")})
+
+
+def cmd_report(args) -> None:
+    p = _params(args)
+    if args.what == "volume":
+        from tactilepipe.volume.report import build_report
+        build_report(Path(args.in_dir), p, Path(args.raw_root), Path(args.shard_root))
+    else:
+        from tactilepipe.drift.analyse import run
+        run([Path(s) for s in args.shards], Path(args.in_dir), p)
+
+
+# --- argument parsing -------------------------------------------------------------------------
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="tactilepipe", description=__doc__.splitlines()[0])
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--params", default="params.yaml", help="parameter file (default: params.yaml)")
+    common.add_argument("--scale", help="smoke | default | paper (overrides params.yaml)")
+    common.add_argument("--override", help="JSON object merged over params.yaml before validation")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="STAGE")
+
+    s = sub.add_parser("simulate", parents=[common], help="write simulated raw recordings (ROS1 bags)")
+    s.add_argument("what", choices=["volume", "drift"])
+    s.add_argument("--out-dir", required=True, help="session folder, e.g. raw/volume/sim-default")
+    s.add_argument("--lifts", nargs="*", help="only these recordings (default: the whole session)")
+    s.add_argument("--labels", action="store_true", help="also write the session's lifts.csv")
+    s.set_defaults(func=cmd_simulate)
+
+    s = sub.add_parser("ingest", help="PapillArray bag(s) -> Parquet shard(s)")
+    s.add_argument("bags", nargs="+", metavar="BAG SHARD", help="pairs: input bag, output shard")
+    s.set_defaults(func=cmd_ingest)
+
+    s = sub.add_parser("dataset", parents=[common], help="segment the off-table phase of every lift")
+    s.add_argument("--raw-root", default="raw/volume")
+    s.add_argument("--shard-root", default="results/volume/shards")
+    s.add_argument("--out", required=True)
+    s.add_argument("--qc", required=True)
+    s.set_defaults(func=cmd_dataset)
+
+    s = sub.add_parser("split", parents=[common], help="seeded train/test lift draws stratified by volume")
+    s.add_argument("--dataset", required=True)
+    s.add_argument("--out", required=True)
+    s.set_defaults(func=cmd_split)
+
+    s = sub.add_parser("train", parents=[common], help="fit the MLP of one input modality on every fold")
+    s.add_argument("--modality", required=True)
+    s.add_argument("--dataset", required=True)
+    s.add_argument("--folds", required=True)
+    s.add_argument("--out-dir", required=True)
+    s.set_defaults(func=cmd_train)
+
+    s = sub.add_parser("gridsearch", parents=[common], help="MLP grid search on the first fold")
+    s.add_argument("--dataset", required=True)
+    s.add_argument("--folds", required=True)
+    s.add_argument("--out", required=True)
+    s.set_defaults(func=cmd_gridsearch)
+
+    s = sub.add_parser("baseline", parents=[common], help="algebraic friction baseline with the mu sweep")
+    s.add_argument("--dataset", required=True)
+    s.add_argument("--folds", required=True)
+    s.add_argument("--out-dir", required=True)
+    s.set_defaults(func=cmd_baseline)
+
+    s = sub.add_parser("report", parents=[common], help="metrics.json, tables and figures of a scene")
+    s.add_argument("what", choices=["volume", "drift"])
+    s.add_argument("--in-dir", required=True, help="the scene's results folder")
+    s.add_argument("--raw-root", default="raw/volume")
+    s.add_argument("--shard-root", default="results/volume/shards")
+    s.add_argument("--shards", nargs="*", default=[], help="drift: the recordings' shards")
+    s.set_defaults(func=cmd_report)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        args.func(args)
+    except TactilepipeError as exc:
+        print(f"tactilepipe {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    return 0

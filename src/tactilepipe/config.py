@@ -1,0 +1,95 @@
+"""Load params.yaml, apply the chosen scale's overlay, validate against the JSON schema.
+
+Snakemake (workflow/rules/common.smk) and the CLI both go through `load_params`, so a stage
+sees the same numbers whichever way it is started.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+from pathlib import Path
+from typing import Any
+
+import jsonschema
+import yaml
+
+from tactilepipe.errors import ConfigError
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+SCHEMA_PATH = REPO_ROOT / "workflow" / "schemas" / "params.schema.json"
+DEFAULT_PARAMS = Path("params.yaml")
+
+
+def _schema() -> dict:
+    return json.loads(SCHEMA_PATH.read_text())
+
+
+def deep_merge(base: dict, overlay: dict) -> dict:
+    """Return ``base`` with ``overlay`` merged in (dicts merge recursively, the rest replaces)."""
+    out = copy.deepcopy(base)
+    for key, value in overlay.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = deep_merge(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+def _format_error(err: jsonschema.ValidationError, source: str) -> str:
+    where = ".".join(str(p) for p in err.absolute_path) or "(top level)"
+    return f"{source}: invalid parameter at '{where}': {err.message}"
+
+
+def validate(raw: dict, source: str = "params.yaml") -> None:
+    """Raise ConfigError naming the first offending key (wrong key, type or range)."""
+    validator = jsonschema.Draft202012Validator(_schema())
+    errors = sorted(validator.iter_errors(raw), key=lambda e: (len(e.absolute_path), str(e.absolute_path)))
+    if errors:
+        raise ConfigError(_format_error(errors[0], source))
+
+
+def resolve(raw: dict, source: str = "params.yaml") -> dict[str, Any]:
+    """Validate ``raw`` (params.yaml plus overrides) and return it with its scale applied."""
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{source}: expected a mapping of parameter groups, got {type(raw).__name__}")
+    validate(raw, source)
+    scale = raw["scale"]
+    if scale not in raw["scales"]:
+        raise ConfigError(f"{source}: unknown scale '{scale}' (choose one of {sorted(raw['scales'])})")
+    resolved = deep_merge({k: v for k, v in raw.items() if k != "scales"}, raw["scales"][scale])
+    validate({**resolved, "scales": raw["scales"]}, f"{source} (scale '{scale}')")
+    resolved["volume_sessions"] = [s.replace("{scale}", scale) for s in resolved["volume_sessions"]]
+    _check_consistency(resolved, source)
+    return resolved
+
+
+def _check_consistency(p: dict, source: str) -> None:
+    folds, sim = p["folds"], p["simulate_volume"]
+    need = folds["train_lifts_per_volume"] + folds["test_lifts_per_volume"]
+    if any(s.startswith("sim-") for s in p["volume_sessions"]) and sim["lifts_per_volume"] < need:
+        raise ConfigError(
+            f"{source}: simulate_volume.lifts_per_volume={sim['lifts_per_volume']} is fewer than the "
+            f"{need} lifts per volume the folds need (train {folds['train_lifts_per_volume']} + "
+            f"test {folds['test_lifts_per_volume']})")
+    if p["baseline"]["mu_min"] >= p["baseline"]["mu_max"]:
+        raise ConfigError(f"{source}: baseline.mu_min must be below baseline.mu_max")
+    if p["mlp"]["grid"]["modality"] not in p["mlp"]["modalities"]:
+        raise ConfigError(f"{source}: mlp.grid.modality '{p['mlp']['grid']['modality']}' is not one of "
+                          f"mlp.modalities {sorted(p['mlp']['modalities'])}")
+    if p["simulate_volume"]["friction_kinetic"] > p["simulate_volume"]["friction_static"]:
+        raise ConfigError(f"{source}: simulate_volume.friction_kinetic must not exceed friction_static")
+
+
+def load_params(path: str | Path = DEFAULT_PARAMS, overrides: dict | None = None) -> dict[str, Any]:
+    """Read params.yaml, apply ``overrides`` (e.g. {"scale": "smoke"}), validate and resolve."""
+    path = Path(path)
+    try:
+        raw = yaml.safe_load(path.read_text())
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: parameter file not found") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: not valid YAML: {exc}") from None
+    if overrides:
+        raw = deep_merge(raw or {}, overrides)
+    return resolve(raw, str(path))

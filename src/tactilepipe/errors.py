@@ -1,0 +1,24 @@
+"""Errors a user can act on: each names the file (and record) and what is wrong."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class TactilepipeError(Exception):
+    """Base class; the CLI prints these as one clear line instead of a traceback."""
+
+
+class InputError(TactilepipeError):
+    """Bad input data: names the file, optionally the record, and the problem."""
+
+    def __init__(self, path: str | Path, problem: str, record: str | int | None = None):
+        self.path = str(path)
+        self.problem = problem
+        self.record = record
+        where = self.path if record is None else f"{self.path} [{record}]"
+        super().__init__(f"{where}: {problem}")
+
+
+class ConfigError(TactilepipeError):
+    """params.yaml (or an override) is invalid."""

@@ -1,0 +1,106 @@
+"""Shards -> the off-table force samples of every lift (the table every model reads).
+
+A lift is off the table while the arm is raised (pose topic) or, in recordings without the
+pose topic, while the vertical shear |Fy| carried by the pads stays near its hold level.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+
+from tactilepipe.errors import InputError
+
+FORCE_COLS = ["gfx", "gfy", "gfz"]
+
+
+def read_shard(path: str | Path) -> dict:
+    """Global forces per sensor on sensor 0's clock, plus the tool height when recorded."""
+    path = Path(path)
+    try:
+        table = pq.read_table(path, columns=["topic", "stamp_ns", "sensor", *FORCE_COLS, "tool_z"])
+    except Exception as exc:
+        raise InputError(path, f"cannot read shard: {type(exc).__name__}: {exc}") from None
+    df = table.to_pandas()
+    sensors = df[df["sensor"].notna()]
+    if sensors.empty:
+        raise InputError(path, "shard holds no sensor messages")
+    by_sensor = {int(s): g for s, g in sensors.groupby("sensor")}
+    if 0 not in by_sensor:
+        raise InputError(path, "shard has no /hub_0/sensor_0 messages (the reference clock)")
+    t_ns = by_sensor[0]["stamp_ns"].to_numpy()
+    out = {"t": (t_ns - t_ns[0]) / 1e9, "stamp_ns": t_ns}
+    for s in (0, 1):
+        g = by_sensor.get(s)
+        for c in FORCE_COLS:
+            if g is None:
+                out[f"{c[1:]}{s}"] = np.full(len(t_ns), np.nan)
+            else:  # sensor 1 is put on sensor 0's stamps (the driver publishes both together)
+                out[f"{c[1:]}{s}"] = np.interp(t_ns, g["stamp_ns"].to_numpy(), g[c].to_numpy(np.float64))
+    pose = df[df["tool_z"].notna()]
+    out["tool_z"] = (np.interp(t_ns, pose["stamp_ns"].to_numpy(), pose["tool_z"].to_numpy())
+                     if len(pose) >= 2 else None)
+    return out
+
+
+def _longest_run(mask: np.ndarray) -> tuple[int, int]:
+    """[start, stop) of the longest run of True values (0, 0 when there is none)."""
+    if not mask.any():
+        return 0, 0
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    k = int(np.argmax(stops - starts))
+    return int(starts[k]), int(stops[k])
+
+
+def off_table_segment(rec: dict, seg: dict, path: str | Path = "?") -> tuple[int, int, str]:
+    """Sample range [start, stop) when the container is off the table, and the method used."""
+    method = seg["method"]
+    if method == "pose" and rec["tool_z"] is None:
+        raise InputError(path, "segment.method is 'pose' but the bag has no /tool_pose topic")
+    if method in ("auto", "pose") and rec["tool_z"] is not None:
+        z = rec["tool_z"]
+        rest = np.median(z[: max(1, int(0.1 * len(z)))])
+        mask = (z - rest) * 1000.0 > seg["pose_lift_threshold_mm"]
+        used = "pose"
+    else:
+        dt = np.median(np.diff(rec["t"])) if len(rec["t"]) > 1 else 1.0
+        fy = np.abs(np.nan_to_num(rec["fy0"]) + np.nan_to_num(rec["fy1"]))
+        width = max(1, int(round(seg["force_smooth_s"] / dt)))
+        smooth = np.convolve(fy, np.ones(width) / width, mode="same")
+        rest = np.median(smooth[: max(1, width * 2)])
+        level = np.percentile(smooth - rest, 75)
+        mask = (smooth - rest) >= seg["force_fraction"] * level
+        used = "force"
+    start, stop = _longest_run(mask)
+    duration = rec["t"][stop - 1] - rec["t"][start] if stop > start else 0.0
+    if duration < seg["min_off_table_s"]:
+        raise InputError(path, f"the lift never leaves the table (longest off-table phase {duration:.2f} s "
+                               f"by the {used} method, need {seg['min_off_table_s']} s)")
+    return start, stop, used
+
+
+def build_dataset(lifts: pd.DataFrame, seg: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Off-table samples of every lift, and a QC row per lift.
+
+    lifts: columns lift (unique id), session, volume_ml, set, shard (path).
+    """
+    frames, qc = [], []
+    for row in lifts.itertuples(index=False):
+        rec = read_shard(row.shard)
+        start, stop, used = off_table_segment(rec, seg, row.shard)
+        part = pd.DataFrame({k: rec[k][start:stop] for k in
+                             ("t", "fx0", "fy0", "fz0", "fx1", "fy1", "fz1")})
+        part.insert(0, "lift", row.lift)
+        part.insert(1, "session", row.session)
+        part.insert(2, "volume_ml", row.volume_ml)
+        part.insert(3, "set", row.set)
+        frames.append(part)
+        qc.append({"lift": row.lift, "session": row.session, "volume_ml": row.volume_ml, "set": row.set,
+                   "samples": len(rec["t"]), "off_table_samples": stop - start,
+                   "off_table_s": float(rec["t"][stop - 1] - rec["t"][start]), "segment_method": used,
+                   "mean_fy0": float(part["fy0"].mean()), "mean_fz0": float(part["fz0"].mean())})
+    return pd.concat(frames, ignore_index=True), pd.DataFrame(qc)

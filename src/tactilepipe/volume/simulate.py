@@ -1,0 +1,287 @@
+"""Simulated lifts of a water-filled container held by two PapillArray sensors (study 001).
+
+Physics (REFERENCE.md section 4), per 500 Hz sample:
+- Robotiq grip: the normal force per pad ramps to the force setting (with lift-to-lift
+  repeatability); it does not depend on the load, because the gripper is force-controlled.
+- Normal load map: a rigid wall pressed into 9 linear-spring pillars of different heights
+  (centre tallest), slightly tilted; the indentation is solved so the pillar forces sum to the grip.
+- Lift: minimum-jerk 10 cm lift, hold, place. The pads carry min(K·z, m(g + a)): the container
+  stays on the table until the pad springs carry its weight. The two pads share the load in
+  proportion to their tangential stiffness; a small grasp tilt puts part of it on x.
+- Friction: each pillar sticks while |f_t| <= mu_s f_z and slides at mu_k f_z otherwise (an exact
+  active-set solve per sample), so lightly loaded outer pillars slip first.
+- Measurement: pillar noise, residual bias after the driver's bias request, thermal drift
+  dF(t) = dF_inf (1 - exp(-t / tau)) since the last bias (growing with the carried load).
+Nothing here writes the volume or the off-table interval into the bag; labels go to lifts.csv.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from tactilepipe import papillarray as pa
+from tactilepipe.atomic import write_text
+from tactilepipe.bagio import write_bag
+
+G = 9.81
+SESSION_EPOCH_S = 1_767_225_600  # 2026-01-01T00:00:00Z: simulated sessions start here
+POSE_TOPIC = "/tool_pose"
+POSE_BASE_Z_M = 0.12  # tool height when the container stands on the table
+
+
+@dataclass(frozen=True)
+class Lift:
+    """One recorded lift: its bag name, label and position in the recording session."""
+    name: str
+    volume_ml: float
+    kind: str          # "main" (the 7 trained volumes) or "unseen"
+    block: int         # volume block: the sensors are biased when a block starts
+    index: int         # lift index within the block
+
+
+def session_plan(sim: dict) -> list[Lift]:
+    """All lifts of a simulated session, in recording order (one block per volume)."""
+    lifts = []
+    blocks = [(v, "main", sim["lifts_per_volume"]) for v in sim["volumes_ml"]]
+    blocks += [(v, "unseen", sim["unseen_lifts_per_volume"]) for v in sim["unseen_volumes_ml"]]
+    for b, (volume, kind, count) in enumerate(blocks):
+        for i in range(count):
+            lifts.append(Lift(f"v{int(round(volume)):03d}_{kind}_l{i:02d}", float(volume), kind, b, i))
+    return lifts
+
+
+def minimum_jerk(t: np.ndarray, duration: float, height: float) -> tuple[np.ndarray, np.ndarray]:
+    """Position and acceleration of a minimum-jerk move from 0 to ``height`` over ``duration``."""
+    tau = np.clip(t / duration, 0.0, 1.0)
+    z = height * (10 * tau**3 - 15 * tau**4 + 6 * tau**5)
+    acc = height / duration**2 * (60 * tau - 180 * tau**2 + 120 * tau**3)
+    acc = np.where((t >= 0) & (t <= duration), acc, 0.0)
+    return z, acc
+
+
+def _smooth_step(t: np.ndarray, start: float, duration: float) -> np.ndarray:
+    return minimum_jerk(t - start, duration, 1.0)[0]
+
+
+@dataclass
+class Timeline:
+    t: np.ndarray          # s since the recording started
+    grip: np.ndarray       # normal force per pad, N
+    z: np.ndarray          # tool lift above the table position, m
+    acc: np.ndarray        # tool vertical acceleration, m/s^2
+    phases: dict           # phase name -> (start, end) s
+
+
+def lift_timeline(sim: dict, rate_hz: float, grip_force: float, lift_s: float) -> Timeline:
+    pre, close, settle, hold, opening, post = 0.3, 0.6, 0.3, sim["hold_duration_s"], 0.4, 0.3
+    t_lift = pre + close + settle
+    t_hold = t_lift + lift_s
+    t_place = t_hold + hold
+    t_open = t_place + lift_s + settle
+    total = t_open + opening + post
+    t = np.arange(int(round(total * rate_hz))) / rate_hz
+    grip = grip_force * (_smooth_step(t, pre, close) - _smooth_step(t, t_open, opening))
+    z_up, a_up = minimum_jerk(t - t_lift, lift_s, sim["lift_height_m"])
+    z_dn, a_dn = minimum_jerk(t - t_place, lift_s, sim["lift_height_m"])
+    phases = {"close": (pre, pre + close), "lift": (t_lift, t_hold), "hold": (t_hold, t_place),
+              "place": (t_place, t_place + lift_s), "open": (t_open, t_open + opening)}
+    return Timeline(t, grip, z_up - z_dn, a_up - a_dn, phases)
+
+
+def pillar_offsets_mm(steps: list[float]) -> np.ndarray:
+    """How far each pillar tip sits below the centre tip (centre, edge and corner heights)."""
+    centre, edge, corner = steps
+    return np.array([corner, edge, corner, edge, centre, edge, corner, edge, corner], float)
+
+
+def normal_load_map(grip: np.ndarray, offsets: np.ndarray, tilt: np.ndarray, pitch: float,
+                    k_n: float) -> np.ndarray:
+    """Pillar normal forces (T, 9) for a flat wall pressed with total force ``grip`` (T,).
+
+    The wall is a plane z = d + tilt·(x, y); pillar i is compressed by max(0, z - offset_i).
+    d is found by bisection so the forces sum to the grip (the sum is monotonic in d).
+    """
+    x = (pa.PILLAR_ROWCOL[:, 1] - 1) * pitch
+    y = (1 - pa.PILLAR_ROWCOL[:, 0]) * pitch
+    gap = offsets - (tilt[0] * x + tilt[1] * y)          # depth at which pillar i starts touching
+    lo = np.full_like(grip, gap.min())
+    hi = lo + grip / k_n + (gap.max() - gap.min()) + 1e-9
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        total = k_n * np.clip(mid[:, None] - gap[None, :], 0.0, None).sum(axis=1)
+        too_deep = total > grip
+        hi = np.where(too_deep, mid, hi)
+        lo = np.where(too_deep, lo, mid)
+    d = 0.5 * (lo + hi)
+    fz = k_n * np.clip(d[:, None] - gap[None, :], 0.0, None)
+    return np.where(grip[:, None] > 0, fz, 0.0)
+
+
+def tangential_forces(demand: np.ndarray, fz: np.ndarray, k_t: float, mu_s: float, mu_k: float
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stick/slip pillar shear for one pad over time.
+
+    demand: (T, 2) shear (x, y) the pad must carry; fz: (T, 9) pillar normal forces.
+    Returns pillar shear (T, 9, 2), slipping flags (T, 9) and gross-slip flags (T,) (the whole pad
+    slides: it carries only the kinetic limit). Each step solves exactly which pillars stick: the
+    sticking ones share one pad displacement u, sliding ones pull with mu_k f_z along their stretch.
+    """
+    n = len(demand)
+    anchor = np.zeros((9, 2))     # where each pillar's spring is unstretched (moves when it slides)
+    forces = np.zeros((n, 9, 2))
+    slipping = np.zeros((n, 9), bool)
+    gross = np.zeros(n, bool)
+    u = np.zeros(2)
+    for k in range(n):
+        contact = fz[k] > 0
+        anchor[~contact] = u      # a pillar off the wall relaxes and re-sticks where it lands
+        stick = contact.copy()
+        slide_force = np.zeros((9, 2))
+        for _ in range(10):
+            n_stick = stick.sum()
+            pull = slide_force[contact & ~stick].sum(axis=0)
+            if n_stick == 0:
+                break
+            u = (demand[k] - pull + k_t * anchor[stick].sum(axis=0)) / (k_t * n_stick)
+            f = k_t * (u - anchor)
+            mag = np.linalg.norm(f, axis=1)
+            over = stick & (mag > mu_s * fz[k])
+            if not over.any():
+                break
+            # the most overloaded pillars start sliding at the kinetic limit along their stretch
+            slide_force[over] = (mu_k * fz[k][over] / mag[over])[:, None] * f[over]
+            stick &= ~over
+        f = np.where(stick[:, None], k_t * (u - anchor), slide_force)
+        f[~contact] = 0.0
+        sliding = contact & ~stick
+        if stick.sum() == 0 and contact.any():
+            cap = mu_k * fz[k][contact].sum()
+            want = np.linalg.norm(demand[k])
+            gross[k] = want > cap
+            direction = demand[k] / want if want > 0 else np.zeros(2)
+            f[contact] = (mu_k * fz[k][contact])[:, None] * direction
+        # a sliding pillar's anchor follows so that its spring holds exactly the kinetic force
+        anchor[sliding] = u - f[sliding] / k_t
+        forces[k], slipping[k] = f, sliding
+    return forces, slipping, gross
+
+
+def sensor_properties(seed: int, sim: dict) -> dict:
+    """Per-sensor constants of this rig (fixed for a session): stiffness factors."""
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 1001]))
+    mismatch = sim["sensor_stiffness_mismatch"] * rng.uniform(0.5, 1.0) * rng.choice([-1, 1])
+    return {"k_factor": np.array([1 + mismatch / 2, 1 - mismatch / 2])}
+
+
+def simulate_lift(lift: Lift, sim: dict, seed: int) -> dict:
+    """Simulate one lift; returns per-sample pillar forces of both sensors and the tool pose."""
+    rng = np.random.default_rng(np.random.SeedSequence([seed, int(round(lift.volume_ml * 10)),
+                                                        lift.index, 0 if lift.kind == "main" else 1]))
+    props = sensor_properties(seed, sim)
+    rate = sim["rate_hz"]
+    mass = (sim["container_mass_g"] + lift.volume_ml) / 1000.0      # water: 1 g per ml
+    grip_force = sim["grip_force_n"] * (1 + sim["grip_force_rel_std"] * rng.standard_normal())
+    lift_s = sim["lift_duration_s"] * (1 + 0.03 * rng.standard_normal())
+    tl = lift_timeline(sim, rate, grip_force, lift_s)
+    n = len(tl.t)
+
+    k_n, k_t = sim["pillar_normal_stiffness_n_per_mm"], sim["pillar_tangential_stiffness_n_per_mm"]
+    offsets = pillar_offsets_mm(sim["pillar_height_steps_mm"])
+    grasp_tilt = np.deg2rad(sim["grasp_tilt_std_deg"]) * rng.standard_normal()
+
+    # Load carried by the pads: the container leaves the table once the pad springs hold m(g + a).
+    k_pads = 2 * 9 * k_t * 1000.0                              # N/m, all pillars sticking
+    carried = np.minimum(k_pads * np.clip(tl.z, 0, None), mass * (G + tl.acc))
+    carried = np.where(tl.grip > 0, carried, 0.0)
+    share = props["k_factor"] / props["k_factor"].sum()
+
+    force = np.zeros((n, 2, 9, 3))
+    slip = np.zeros((n, 2, 9), bool)
+    gross = np.zeros(n, bool)
+    for s in range(2):
+        tilt = np.tan(np.deg2rad(sim["contact_tilt_std_deg"]) * rng.standard_normal(2))
+        fz = normal_load_map(tl.grip, offsets, tilt, sim["pillar_pitch_mm"], k_n)
+        # y points down the pad (positive when the container pulls down); sensor 1 faces sensor 0,
+        # so its x axis is mirrored
+        direction = np.array([np.sin(grasp_tilt) * (1 if s == 0 else -1), np.cos(grasp_tilt)])
+        demand = (share[s] * carried)[:, None] * direction[None, :]
+        ft, slip[:, s], g = tangential_forces(demand, fz, k_t * props["k_factor"][s],
+                                              sim["friction_static"], sim["friction_kinetic"])
+        gross |= g
+        force[:, s, :, :2], force[:, s, :, 2] = ft, fz
+
+    # Measurement: bias residual, thermal drift since the block's bias request, white noise.
+    t_since_bias = lift.index * sim["lift_cycle_s"] + tl.t
+    drift_inf = sim["drift_inf_n"] + sim["drift_per_kg_n"] * carried / G
+    drift = drift_inf * (1 - np.exp(-t_since_bias / sim["drift_tau_s"]))
+    measured = force.copy()
+    measured += sim["bias_residual_std_n"] * rng.standard_normal((1, 2, 9, 3))
+    measured[..., 2] += (drift / 9.0)[:, None, None]
+    measured += sim["noise_std_n"] * rng.standard_normal(measured.shape)
+
+    stiffness = np.array([k_t, k_t, k_n])
+    in_contact = force[..., 2] > 0.05
+    pose_t = np.arange(0, tl.t[-1], 1.0 / sim["pose_rate_hz"])
+    pose_z = POSE_BASE_Z_M + np.interp(pose_t, tl.t, tl.z) + 2e-5 * rng.standard_normal(len(pose_t))
+    return {"t": tl.t, "force": measured.astype(np.float32), "disp": (measured / stiffness).astype(np.float32),
+            "in_contact": in_contact, "slip": slip, "pose_t": pose_t, "pose_z": pose_z,
+            "off_table": (carried >= mass * (G + tl.acc) - 1e-12) & (tl.z > 0), "gross_slip": gross,
+            "phases": tl.phases}
+
+
+def lift_start_ns(lift: Lift, sim: dict) -> int:
+    block_s = 600.0 * lift.block      # each volume block starts 10 min after the previous one
+    return int(round((SESSION_EPOCH_S + block_s + lift.index * sim["lift_cycle_s"]) * 1e9))
+
+
+def write_lift_bag(path: str | Path, lift: Lift, sim: dict, seed: int) -> dict:
+    """Simulate ``lift`` and write it as a ROS1 bag the way papillarray_ros_v2 publishes it."""
+    rec = simulate_lift(lift, sim, seed)
+    start = lift_start_ns(lift, sim)
+    stamps = start + np.round(rec["t"] * 1e9).astype(np.int64)
+    tus = np.round((stamps - SESSION_EPOCH_S * 1_000_000_000) / 1000).astype(np.int64)
+    topics = {}
+    for s in range(2):
+        raws = pa.encode_sensor_states(stamps, tus, rec["disp"][:, s], rec["force"][:, s],
+                                       rec["in_contact"][:, s], np.zeros((len(stamps), 9), np.int32),
+                                       frame_id=f"hub_0/sensor_{s}")
+        topics[pa.sensor_topic(0, s)] = (pa.SENSOR_STATE, stamps.tolist(), raws)
+    pose_stamps = start + np.round(rec["pose_t"] * 1e9).astype(np.int64)
+    pos = np.zeros((len(pose_stamps), 3))
+    pos[:, 0], pos[:, 2] = 0.45, rec["pose_z"]
+    topics[POSE_TOPIC] = (pa.POSE_STAMPED, pose_stamps.tolist(), pa.encode_pose_stamped(pose_stamps, pos))
+    write_bag(path, topics)
+    return rec
+
+
+def write_session_labels(session_dir: str | Path, lifts: list[Lift]) -> None:
+    """lifts.csv: what the lab notes down for every bag (its file, the filled volume, its set)."""
+    rows = ["bag,volume_ml,set"] + [f"{l.name}.bag,{l.volume_ml:g},{l.kind}" for l in lifts]
+    write_text(Path(session_dir) / "lifts.csv", "\n".join(rows) + "\n")
+
+
+def read_session_labels(session_dir: str | Path) -> list[dict]:
+    from tactilepipe.errors import InputError
+    path = Path(session_dir) / "lifts.csv"
+    if not path.exists():
+        raise InputError(path, "missing: every recording session needs lifts.csv (bag,volume_ml,set)")
+    with path.open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        if reader.fieldnames is None or not {"bag", "volume_ml", "set"} <= set(reader.fieldnames):
+            raise InputError(path, f"header must hold bag,volume_ml,set (found {reader.fieldnames})")
+        rows = []
+        for line, row in enumerate(reader, start=2):
+            try:
+                volume = float(row["volume_ml"])
+            except (TypeError, ValueError):
+                raise InputError(path, f"volume_ml '{row['volume_ml']}' is not a number", f"line {line}") from None
+            if not np.isfinite(volume) or volume < 0:
+                raise InputError(path, f"volume_ml {volume} must be finite and >= 0", f"line {line}")
+            if row["set"] not in ("main", "unseen"):
+                raise InputError(path, f"set '{row['set']}' must be main or unseen", f"line {line}")
+            rows.append({"bag": row["bag"], "volume_ml": volume, "set": row["set"]})
+    return rows
