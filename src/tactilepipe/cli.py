@@ -29,6 +29,23 @@ def _progress(iterable, desc: str, total: int | None = None):
                 disable=None, mininterval=1.0)
 
 
+def _call(job):
+    func, *args = job
+    func(*args)
+
+
+def _run_parallel(jobs: list, workers: int, desc: str) -> None:
+    """Run (func, *args) jobs on ``workers`` processes, with a progress bar; errors propagate."""
+    if workers <= 1:
+        for job in _progress(jobs, desc):
+            _call(job)
+        return
+    from concurrent.futures import ProcessPoolExecutor
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        for _ in _progress(pool.map(_call, jobs), desc, total=len(jobs)):
+            pass
+
+
 # --- stages -----------------------------------------------------------------------------------
 
 def cmd_simulate(args) -> None:
@@ -41,15 +58,14 @@ def cmd_simulate(args) -> None:
         unknown = set(args.lifts or []) - {l.name for l in plan}
         if unknown:
             raise TactilepipeError(f"unknown lift names for this scale: {sorted(unknown)}")
-        for lift in _progress(chosen, "simulate volume"):
-            sim.write_lift_bag(out / f"{lift.name}.bag", lift, p["simulate_volume"], p["seed"])
+        jobs = [(sim.write_lift_bag, out / f"{l.name}.bag", l, p["simulate_volume"], p["seed"]) for l in chosen]
+        _run_parallel(jobs, args.jobs, "simulate volume")
         if args.labels:
             sim.write_session_labels(out, plan)
     else:
         from tactilepipe.drift import simulate as dsim
         names = args.lifts or dsim.session_plan(p)
-        for name in _progress(names, "simulate drift"):
-            dsim.write_drift_bag(out / f"{name}.bag", name, p)
+        _run_parallel([(dsim.write_drift_bag, out / f"{n}.bag", n, p) for n in names], args.jobs, "simulate drift")
 
 
 def cmd_ingest(args) -> None:
@@ -165,6 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out-dir", required=True, help="session folder, e.g. raw/volume/sim-default")
     s.add_argument("--lifts", nargs="*", help="only these recordings (default: the whole session)")
     s.add_argument("--labels", action="store_true", help="also write the session's lifts.csv")
+    s.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     s.set_defaults(func=cmd_simulate)
 
     s = sub.add_parser("ingest", help="PapillArray bag(s) -> Parquet shard(s)")

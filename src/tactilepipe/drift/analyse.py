@@ -64,7 +64,7 @@ def _interior(mask: np.ndarray, guard: int) -> np.ndarray:
     return window == 2 * guard + 1
 
 
-def split_load(t: np.ndarray, fz: np.ndarray, smooth_s: float = 0.1, guard_s: float = 0.2
+def split_load(t: np.ndarray, fz: np.ndarray, smooth_s: float = 0.1, guard_s: float = 0.3
                ) -> tuple[np.ndarray, np.ndarray, float]:
     """(loaded samples, unloaded samples, step in N) of one recording, from global Fz alone.
 
@@ -84,23 +84,22 @@ def _mean_std(x: np.ndarray) -> tuple[float, float]:
     return (float(x.mean()), float(x.std(ddof=1))) if len(x) > 1 else (float("nan"), float("nan"))
 
 
-def recording_reading(path: str | Path, run: str, reference_n: float, sensor: int = 0,
-                      min_step_n: float = 1.0) -> dict:
-    """Mean and spread of global Fz in one recording's unloaded part and (loaded run) loaded part."""
-    path = Path(path)
-    t, fz = _read_fz(path, sensor)
+def reading(t: np.ndarray, fz: np.ndarray, run: str, reference_n: float, min_step_n: float = 1.0,
+            source: str | Path = "<recording>") -> dict:
+    """Mean and spread of global Fz over the unloaded part and (loaded run) the loaded part of one
+    recording, and the deviation from what is really on the sensor. ``source`` names errors."""
     loaded, unloaded, step = split_load(t, fz)
     row = {"n_samples": len(fz), "step_n": step}
     if run == "loaded":
         if step < min_step_n:
-            raise InputError(path, f"loaded run, but global Fz never changes by {min_step_n} N "
-                                   f"(range {step:.3f} N): no weight was placed")
+            raise InputError(source, f"loaded run, but global Fz never changes by {min_step_n} N "
+                                     f"(range {step:.3f} N): no weight was placed")
         if not loaded.any():
-            raise InputError(path, "loaded run, but no steady loaded part was found")
+            raise InputError(source, "loaded run, but no steady loaded part was found")
     else:
         if step >= min_step_n:
-            raise InputError(path, f"unloaded run, but global Fz changes by {step:.2f} N: "
-                                   "something was on the sensor")
+            raise InputError(source, f"unloaded run, but global Fz changes by {step:.2f} N: "
+                                     "something was on the sensor")
         loaded, unloaded = np.zeros_like(loaded), np.ones_like(unloaded)
     row["n_unloaded"], row["n_loaded"] = int(unloaded.sum()), int(loaded.sum())
     row["fz_unloaded_mean_n"], row["fz_unloaded_std_n"] = _mean_std(fz[unloaded])
@@ -112,6 +111,13 @@ def recording_reading(path: str | Path, run: str, reference_n: float, sensor: in
         row["deviation_n"], row["deviation_std_n"] = row["fz_unloaded_mean_n"], row["fz_unloaded_std_n"]
     row["reference_n"] = reference_n if run == "loaded" else 0.0
     return row
+
+
+def recording_reading(path: str | Path, run: str, reference_n: float, sensor: int = 0,
+                      min_step_n: float = 1.0) -> dict:
+    """`reading` of one shard's global Fz (sensor ``sensor``)."""
+    t, fz = _read_fz(Path(path), sensor)
+    return reading(t, fz, run, reference_n, min_step_n, source=path)
 
 
 def drift_series(shard_paths, load_g: float = 500.0, sensor: int = 0, min_step_n: float = 1.0) -> pd.DataFrame:

@@ -48,8 +48,9 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
     preds = pd.read_parquet(res / "mlp" / best / "predictions.parquet")
 
     # Table 1 and the run-time table
-    table1 = pd.DataFrame([{"method": figures.label(m).replace("\n", " "), "r2_mean": r2[m]["mean"],
-                            "r2_std": r2[m]["std"]} for m in r2])
+    table1 = pd.DataFrame([{"method": figures.label(m).replace("\n", " "),
+                            "R² (mean ± std)": f"{r2[m]['mean']:.4f} ± {r2[m]['std']:.4f}",
+                            "r2_mean": r2[m]["mean"], "r2_std": r2[m]["std"]} for m in r2])
     runtime = pd.DataFrame([{"method": m, "r2_mean": r2[m]["mean"], "r2_std": r2[m]["std"],
                              "fit_s": float(t["fit_s"].mean()),
                              "predict_us_per_sample": float(t["predict_us_per_sample"].mean()),
@@ -70,6 +71,9 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
     _table_files(table2, tables / "table2_volumes", f"Table 2: true vs estimated volume, MLP {best}", "{:.2f}")
     _table_files(unseen_table, tables / "unseen_volumes", f"Unseen volumes, MLP {best}", "{:.2f}")
     _table_files(runtime, tables / "runtime", "Error against run time (fit per fold, predict per sample)")
+    grid = pd.read_csv(res / "mlp" / "grid.csv")
+    _table_files(grid, tables / "grid_search", f"MLP grid search ({p['mlp']['grid']['modality']}, "
+                 f"lift-grouped {p['mlp']['grid']['inner_folds']}-fold CV on fold d1's training lifts)")
 
     figs = res / "figures"
     figures.r2_bars(r2, figs / "r2_by_modality.png")
@@ -96,6 +100,7 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
         "table2_ml": {f"{v:g}": float(e) for v, e in zip(table2["true_ml"], table2["estimated_ml"])},
         "runtime": {r.method: {"fit_s": r.fit_s, "predict_us_per_sample": r.predict_us_per_sample}
                     for r in runtime.itertuples()},
+        "grid_best": grid.iloc[0][["hidden_units", "alpha", "learning_rate", "r2_mean"]].to_dict(),
         "scale": p["scale"],
     }
     write_json(res / "metrics.json", metrics)

@@ -1,0 +1,15 @@
+# Study 001's drift experiment: recordings every 5 min over 30 min -> drift curves and fits.
+
+
+rule drift_report:
+    input:
+        drift_shards(),
+    output:
+        DRIFT_TARGETS,
+        series=f"{DRIFT}/drift_series.csv",
+    params:
+        drift=P["drift"],
+    log:
+        f"{LOGS}/drift/report.log",
+    shell:
+        "{CLI} report drift {PARAMS_ARGS} --in-dir {DRIFT} --shards {input} 2> {log}"

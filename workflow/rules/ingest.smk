@@ -1,0 +1,14 @@
+# Raw recordings -> one validated Parquet shard per bag (only new or changed bags are re-ingested).
+
+
+rule ingest_papillarray:
+    input:
+        "raw/{scene}/{session}/{stem}.bag",
+    output:
+        "results/{scene}/shards/{session}/{stem}.parquet",
+    wildcard_constraints:
+        scene="volume|drift",
+    log:
+        f"{LOGS}/ingest/{{scene}}/{{session}}/{{stem}}.log",
+    shell:
+        "{CLI} ingest {input} {output} > {log} 2>&1"
