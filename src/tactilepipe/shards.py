@@ -89,16 +89,16 @@ def shard_table(decoded: dict) -> pa_.Table:
         stamps, z = decoded["pose"]
         parts.append({"topic": np.full(len(stamps), DEFAULT_POSE_TOPIC), "stamp_ns": stamps, "tool_z": z})
     names = list(parts[0]) + ["tool_z"]
+    types = {"tool_z": pa_.float64()}
+    for part in parts:
+        for name, values in part.items():
+            types.setdefault(name, pa_.array(values[:0]).type)
     for name in names:
-        chunks = []
-        for part in parts:
-            n = len(part["stamp_ns"])
-            if name in part:
-                chunks.append(pa_.array(part[name]))
-            else:
-                ref = next(p[name] for p in parts if name in p)
-                chunks.append(pa_.nulls(n, type=pa_.array(ref[:0]).type))
-        columns[name] = pa_.concat_arrays([c.cast(chunks[0].type) for c in chunks])
+        # rows of another topic hold nulls in this topic's columns (and tool_z is all null
+        # in recordings without the arm pose)
+        columns[name] = pa_.concat_arrays([
+            pa_.array(part[name], type=types[name]) if name in part
+            else pa_.nulls(len(part["stamp_ns"]), type=types[name]) for part in parts])
     return pa_.table(columns)
 
 

@@ -1,0 +1,31 @@
+# Two commands: `make run` (build every result) and `make test` (the whole test suite).
+# Both create .venv from the pinned requirements.txt when it is missing or out of date.
+
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+SNAKEMAKE := $(BIN)/snakemake --cores 2 --workflow-profile workflow/profiles/default
+
+.PHONY: run test smoke bench clean-results
+
+$(STAMP): requirements.txt pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --disable-pip-version-check -q -r requirements.txt
+	$(BIN)/pip install --disable-pip-version-check -q --no-deps -e .
+	touch $@
+
+run: $(STAMP)  ## rebuild all results of params.yaml's scenes at its scale
+	PATH=$(CURDIR)/$(BIN):$$PATH $(SNAKEMAKE)
+
+smoke: $(STAMP)  ## the whole pipeline at the smoke scale (about a minute)
+	PATH=$(CURDIR)/$(BIN):$$PATH $(SNAKEMAKE) --config scale=smoke
+
+test: $(STAMP)  ## the whole test suite (unit + smoke-scale integration through real Snakemake)
+	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest
+
+bench: $(STAMP)  ## benchmarks: ingest vs bare rosbags read, and the default-scale volume scene
+	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_volume.py
+
+clean-results:  ## remove generated results (raw recordings stay)
+	rm -rf results/volume results/drift results/logs
