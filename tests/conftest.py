@@ -1,0 +1,99 @@
+"""Shared fixtures of the volume-scene tests: smoke parameters, a few simulated lifts (bags and
+shards, written once per session), and a plain rosbags writer for hand-made bad recordings."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.rosbag1 import Writer
+
+from tactilepipe import papillarray as pa
+from tactilepipe.config import REPO_ROOT, load_params
+from tactilepipe.shards import ingest_bag
+from tactilepipe.volume import simulate as vsim
+
+PARAMS_PATH = REPO_ROOT / "params.yaml"
+
+# Lifts simulated once for the whole test session (smoke scale: 100 Hz, pose at 50 Hz).
+SESSION_LIFTS = [(0.0, 0), (150.0, 1), (300.0, 2)]
+
+
+@pytest.fixture(scope="session")
+def params_path() -> Path:
+    return PARAMS_PATH
+
+
+@pytest.fixture(scope="session")
+def smoke_params() -> dict:
+    return load_params(PARAMS_PATH, {"scale": "smoke"})
+
+
+@pytest.fixture
+def vsim_params(smoke_params) -> dict:
+    """A fresh copy of the smoke simulate_volume group (tests may modify it)."""
+    return dict(smoke_params["simulate_volume"])
+
+
+@pytest.fixture
+def quiet_sim(vsim_params) -> dict:
+    """The smoke rig with every measurement error and the grip repeatability switched off, so the
+    physics can be checked exactly."""
+    return {**vsim_params, "noise_std_n": 0.0, "bias_residual_std_n": 0.0, "drift_inf_n": 0.0,
+            "drift_per_kg_n": 0.0, "grip_force_rel_std": 0.0}
+
+
+@pytest.fixture(scope="session")
+def sim_lifts(tmp_path_factory, smoke_params) -> list[dict]:
+    """A few smoke-scale lifts: simulator output, bag and ingested shard of each."""
+    root = tmp_path_factory.mktemp("volume_lifts")
+    out = []
+    for volume, index in SESSION_LIFTS:
+        lift = vsim.Lift(f"v{int(volume):03d}_main_l{index:02d}", volume, "main", 0, index)
+        bag, shard = root / "raw" / f"{lift.name}.bag", root / "shards" / f"{lift.name}.parquet"
+        rec = vsim.write_lift_bag(bag, lift, smoke_params["simulate_volume"], smoke_params["seed"])
+        ingest_bag(bag, shard)
+        out.append({"lift": lift, "rec": rec, "bag": bag, "shard": shard})
+    return out
+
+
+@pytest.fixture(scope="session")
+def good_bag(sim_lifts) -> Path:
+    return sim_lifts[1]["bag"]
+
+
+def _write_ros1_bag(path: str | Path, topics: dict[str, tuple[str, list[int], list[bytes]]]) -> Path:
+    """Write ``{topic: (msgtype, bag stamps, raw messages)}`` with rosbags directly (not with the
+    project's bagio, so bad inputs are made independently of the code under test)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    store = pa.typestore()
+    with Writer(path) as writer:
+        for topic, (msgtype, stamps, raws) in topics.items():
+            conn = writer.add_connection(topic, msgtype, typestore=store)
+            for stamp, raw in zip(stamps, raws):
+                writer.write(conn, int(stamp), raw)
+    return path
+
+
+@pytest.fixture(scope="session")
+def write_ros1_bag():
+    return _write_ros1_bag
+
+
+def _sensor_stream(n: int = 20, seed: int = 0, t0_ns: int = 1_767_225_600_000_000_000,
+                   period_ns: int = 2_000_000) -> dict:
+    """A small synthetic PapillArray stream (arguments of encode_sensor_states)."""
+    rng = np.random.default_rng(seed)
+    force = rng.normal(0.0, 1.0, (n, 9, 3)).astype(np.float32)
+    return {"stamp_ns": t0_ns + period_ns * np.arange(n, dtype=np.int64),
+            "tus": 1000 + 2000 * np.arange(n, dtype=np.int64),
+            "disp": (force / 4.0).astype(np.float32), "force": force,
+            "in_contact": rng.random((n, 9)) > 0.3,
+            "slip_state": rng.integers(0, 3, (n, 9)).astype(np.int32)}
+
+
+@pytest.fixture(scope="session")
+def sensor_stream():
+    return _sensor_stream

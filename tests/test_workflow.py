@@ -1,0 +1,129 @@
+"""End to end through the real Snakemake and DVC command lines, at the smoke scale."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+ENV = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
+pytestmark = pytest.mark.integration
+
+
+def copy_project(dest: Path, scale: str | None = None) -> Path:
+    for name in ("Snakefile", "params.yaml", "dvc.yaml", ".dvcignore"):
+        if (REPO / name).exists():
+            shutil.copy(REPO / name, dest / name)
+    for name in ("workflow", "src"):
+        shutil.copytree(REPO / name, dest / name, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+    if scale:
+        text = (dest / "params.yaml").read_text().replace("scale: default ", f"scale: {scale} ")
+        assert f"scale: {scale} " in text
+        (dest / "params.yaml").write_text(text)
+    return dest
+
+
+def run(cmd: list[str], cwd: Path, check: bool = True) -> subprocess.CompletedProcess:
+    proc = subprocess.run(cmd, cwd=cwd, env=ENV, capture_output=True, text=True)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
+    return proc
+
+
+def snakemake(cwd: Path, *args: str, check: bool = True) -> subprocess.CompletedProcess:
+    return run([str(BIN / "snakemake"), "--cores", "2", *args], cwd, check)
+
+
+@pytest.fixture(scope="module")
+def smoke_run(tmp_path_factory) -> Path:
+    wd = copy_project(tmp_path_factory.mktemp("smk"))
+    snakemake(wd, "--config", "scale=smoke")
+    return wd
+
+
+def test_smoke_builds_every_target_of_both_scenes(smoke_run: Path):
+    wd = smoke_run
+    m = json.loads((wd / "results/volume/metrics.json").read_text())
+    assert set(m["r2"]) == {"fx_fy_fz", "fy_fz", "fy", "fz", "baseline"}
+    for method, r2 in m["r2"].items():
+        assert set(r2) >= {"mean", "std"} and all(isinstance(v, float) for v in r2.values()), method
+    assert 0.1 <= m["mu_star"] <= 0.4
+    assert set(m["unseen_ml"]) == {"75", "125"}
+    # even the smoke scale separates the methods: the MLP with Fy beats the algebraic baseline
+    assert m["r2"]["fy_fz"]["mean"] > m["r2"]["baseline"]["mean"] + 0.1
+    for table in ("table1_r2", "table2_volumes", "unseen_volumes", "runtime", "grid_search"):
+        assert (wd / f"results/volume/tables/{table}.csv").stat().st_size > 0
+        assert (wd / f"results/volume/tables/{table}.md").read_text().count("|") > 10
+    for fig in ("r2_by_modality", "mu_r2_curve", "true_vs_estimated", "error_vs_runtime", "pillar_map"):
+        assert (wd / f"results/volume/figures/{fig}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    d = json.loads((wd / "results/drift/metrics.json").read_text())
+    assert d["drift_30min_n"]["loaded"] > d["drift_30min_n"]["unloaded"] > 0
+    assert (wd / "results/drift/figures/drift_curves.png").exists()
+    # every rule logs; raw recordings are bags, shards are Parquet
+    assert len(list((wd / "results/logs").rglob("*.log"))) > 10
+    assert list((wd / "raw/volume/sim-smoke").glob("*.bag")) and (wd / "raw/volume/sim-smoke/lifts.csv").exists()
+
+
+def test_second_run_has_nothing_to_do(smoke_run: Path):
+    proc = snakemake(smoke_run, "-n", "--config", "scale=smoke")
+    assert "Nothing to be done" in proc.stdout + proc.stderr
+
+
+def test_changing_a_model_parameter_reruns_only_what_depends_on_it(smoke_run: Path):
+    params = smoke_run / "params.yaml"
+    original = params.read_text()
+    assert "  mu_min: 0.1\n" in original
+    params.write_text(original.replace("  mu_min: 0.1\n", "  mu_min: 0.12\n"))
+    try:
+        out = snakemake(smoke_run, "-n", "--config", "scale=smoke").stdout
+    finally:
+        params.write_text(original)
+    assert "volume_baseline" in out and "volume_report" in out
+    for rule in ("simulate_volume", "ingest_papillarray", "volume_train", "volume_dataset", "drift_report"):
+        assert rule not in out, rule
+
+
+def test_a_scene_pulls_in_only_its_rules(tmp_path: Path):
+    wd = copy_project(tmp_path)
+    out = snakemake(wd, "-n", "--config", "scale=smoke", "scenes=[drift]").stdout
+    assert "simulate_drift" in out and "drift_report" in out
+    for rule in ("simulate_volume", "volume_dataset", "volume_train", "volume_report"):
+        assert rule not in out, rule
+
+
+@pytest.mark.parametrize("override, expected", [
+    (["scale=huge"], "unknown scale 'huge'"),
+    (["folds={n_folds: two, train_lifts_per_volume: 3, test_lifts_per_volume: 2}"], "folds.n_folds"),
+    (["mlpp=1"], "'mlpp' was unexpected"),
+])
+def test_bad_config_stops_before_any_job(tmp_path: Path, override, expected):
+    wd = copy_project(tmp_path)
+    proc = snakemake(wd, "-n", "--config", *override, check=False)
+    assert proc.returncode != 0
+    assert expected in proc.stdout + proc.stderr
+    assert not (wd / "results").exists() and not (wd / "raw").exists()
+
+
+def test_dvc_repro_reproduces_the_results(tmp_path: Path):
+    wd = copy_project(tmp_path, scale="smoke")
+    run(["git", "init", "-q"], wd)
+    run([str(BIN / "dvc"), "init", "-q"], wd)
+    run([str(BIN / "dvc"), "repro"], wd)
+    m = json.loads((wd / "results/volume/metrics.json").read_text())
+    assert m["scale"] == "smoke" and m["r2"]["fy_fz"]["mean"] > 0.9
+    shown = json.loads(run([str(BIN / "dvc"), "metrics", "show", "--json"], wd).stdout)
+    flat = json.dumps(shown)
+    assert "results/volume/metrics.json" in flat and "results/drift/metrics.json" in flat
+    status = run([str(BIN / "dvc"), "status"], wd).stdout
+    assert "up to date" in status.lower(), status
+    lock = yaml.safe_load((wd / "dvc.lock").read_text())
+    assert set(lock["stages"]) == {"simulate_volume", "simulate_drift", "volume", "drift"}
+    assert "mlp" in lock["stages"]["volume"]["params"]["params.yaml"]
