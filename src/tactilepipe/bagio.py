@@ -47,7 +47,8 @@ def read_topics(path: str | Path, wanted: dict[str, str]) -> dict[str, tuple[lis
                                                f"expected {wanted[conn.topic]}")
                     conns.append(conn)
                     out.setdefault(conn.topic, ([], []))
-            for conn, stamp, raw in reader.messages(connections=conns):
+            # rosbags reads every connection when given none, so only ask when a topic matched
+            for conn, stamp, raw in (reader.messages(connections=conns) if conns else ()):
                 stamps, raws = out[conn.topic]
                 stamps.append(stamp)
                 raws.append(raw)

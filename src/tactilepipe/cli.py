@@ -70,6 +70,9 @@ def cmd_simulate(args) -> None:
 
 def cmd_ingest(args) -> None:
     from tactilepipe.shards import ingest_bag
+    if len(args.bags) % 2:
+        raise TactilepipeError(f"ingest takes BAG SHARD pairs; got {len(args.bags)} paths "
+                               f"(the last, {args.bags[-1]}, has no shard)")
     for bag, shard in zip(args.bags[0::2], args.bags[1::2]):
         info = ingest_bag(bag, shard)
         print(json.dumps(info))

@@ -165,6 +165,9 @@ def decode_sensor_states(raws: list[bytes]) -> dict[str, np.ndarray]:
     fid_len = _string_len_at(first, 12)
     pillar_off = 16 + fid_len + 8 + 4
     pfid_len = _string_len_at(first, pillar_off + 12) if len(first) >= pillar_off + 16 else 0
+    if 16 + fid_len > len(first) or pillar_off + 16 + pfid_len > len(first):
+        # a corrupt string length: let the per-message decoder name the bad record
+        return _decode_generic(raws)
     dtype = sensor_state_dtype(fid_len, pfid_len)
     size = dtype.itemsize
     if all(len(r) == size for r in raws):
@@ -216,8 +219,9 @@ def decode_pose_stamped(raws: list[bytes]) -> tuple[np.ndarray, np.ndarray]:
     """Return (stamp_ns (T,), position (T, 3)) of PoseStamped messages."""
     if not raws:
         return np.zeros(0, np.int64), np.zeros((0, 3))
-    dtype = pose_stamped_dtype(_string_len_at(raws[0], 12))
-    if all(len(r) == dtype.itemsize for r in raws):
+    fid_len = _string_len_at(raws[0], 12) if len(raws[0]) >= 16 else -1
+    dtype = pose_stamped_dtype(fid_len) if 0 <= fid_len <= len(raws[0]) else None
+    if dtype is not None and all(len(r) == dtype.itemsize for r in raws):
         arr = np.frombuffer(b"".join(raws), dtype=dtype)
         return arr["sec"].astype(np.int64) * 1_000_000_000 + arr["nsec"], arr["position"].copy()
     store = typestore()

@@ -1,0 +1,41 @@
+"""RawTrial: one recorded trial as every importer hands it to ingest, whatever the source format.
+
+Importers (native rig layout, the public dataset layout of study 000, ROS1/ROS2 bags) differ in
+how frames and forces are stored and timed; after import they all look like this, on one clock
+(host nanoseconds), and ingest never needs to know where a trial came from.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+SENSORS = ("digit_left", "digit_right")
+
+
+@dataclass
+class SensorFrames:
+    """Frames of one DIGIT: host_ns per frame and a loader for frame i (BGR uint8, H x W x 3)."""
+    host_ns: np.ndarray
+    load: Callable[[int], np.ndarray]
+    source: list[str]                    # file (and record) of each frame, for error messages
+
+    def __len__(self) -> int:
+        return len(self.host_ns)
+
+
+@dataclass
+class RawTrial:
+    trial: str                           # unique within the dataset, e.g. "<session>/<trial>"
+    tool: str
+    kind: str                            # "normal" or "shear"
+    orientation_deg: float
+    insertion_mm: float
+    frames: dict[str, SensorFrames]      # keys: SENSORS (one key for a single-sensor recording)
+    force_host_ns: np.ndarray            # (m,) force sample times on the host clock
+    force_n: np.ndarray                  # (m, 3) Fx, Fy, Fz at the tool tip, N
+    clock: dict = field(default_factory=dict)   # how force times were put on the host clock
+    drops: dict = field(default_factory=dict)   # counted drops while importing (reason -> count)
+    source: str = ""                     # path of the recording
