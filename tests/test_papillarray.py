@@ -201,17 +201,20 @@ def test_wrong_pillar_count_raises_value_error(stream):
         pa.decode_sensor_states(raws)
 
 
-@pytest.mark.xfail(strict=True, raises=TypeError, reason="BUG: papillarray.decode_sensor_states builds a NumPy dtype from the "
-                                       "first record's frame_id length field without checking it against the "
-                                       "message size; a corrupt length >= 2**31 raises TypeError, not ValueError")
-@pytest.mark.parametrize("field", ["header", "pillar"])
+@pytest.mark.parametrize("field", ["header", "pillar", "pose"])
 def test_corrupt_frame_id_length_in_first_record_raises_value_error(encoded, field):
-    raw = bytearray(encoded[0])
-    fid_len = int.from_bytes(raw[12:16], "little")
-    at = 12 if field == "header" else 16 + fid_len + 8 + 4 + 12
+    if field == "pose":
+        raws = pa.encode_pose_stamped(10**18 + np.arange(3, dtype=np.int64), np.zeros((3, 3)))
+        at, decode = 12, pa.decode_pose_stamped
+    else:
+        raws = list(encoded)
+        fid_len = int.from_bytes(raws[0][12:16], "little")
+        at = 12 if field == "header" else 16 + fid_len + 8 + 4 + 12
+        decode = pa.decode_sensor_states
+    raw = bytearray(raws[0])
     raw[at:at + 4] = (0xFFFFFFF0).to_bytes(4, "little")
     with pytest.raises(ValueError, match=r"^record 0:"):
-        pa.decode_sensor_states([bytes(raw)] + list(encoded[1:]))
+        decode([bytes(raw)] + list(raws[1:]))
 
 
 # --- pose -------------------------------------------------------------------------------------

@@ -17,7 +17,13 @@ from tactilepipe.errors import TactilepipeError
 
 def _params(args) -> dict:
     from tactilepipe.config import load_params
-    overrides = json.loads(args.override) if args.override else {}
+    from tactilepipe.errors import ConfigError
+    try:
+        overrides = json.loads(args.override) if args.override else {}
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"--override is not valid JSON: {exc}") from None
+    if not isinstance(overrides, dict):
+        raise ConfigError(f"--override must be a JSON object, got {type(overrides).__name__}")
     if args.scale:
         overrides["scale"] = args.scale
     return load_params(args.params, overrides)

@@ -49,8 +49,12 @@ def validate(raw: dict, source: str = "params.yaml") -> None:
         raise ConfigError(_format_error(errors[0], source))
 
 
-def resolve(raw: dict, source: str = "params.yaml") -> dict[str, Any]:
-    """Validate ``raw`` (params.yaml plus overrides) and return it with its scale applied."""
+def resolve(raw: dict, source: str = "params.yaml", overrides: dict | None = None) -> dict[str, Any]:
+    """Validate ``raw`` (params.yaml plus overrides) and return it with its scale applied.
+
+    Keys given in ``overrides`` are applied again after the scale's overlay, so a value asked for
+    explicitly wins over the scale's.
+    """
     if not isinstance(raw, dict):
         raise ConfigError(f"{source}: expected a mapping of parameter groups, got {type(raw).__name__}")
     validate(raw, source)
@@ -58,6 +62,7 @@ def resolve(raw: dict, source: str = "params.yaml") -> dict[str, Any]:
     if scale not in raw["scales"]:
         raise ConfigError(f"{source}: unknown scale '{scale}' (choose one of {sorted(raw['scales'])})")
     resolved = deep_merge({k: v for k, v in raw.items() if k != "scales"}, raw["scales"][scale])
+    resolved = deep_merge(resolved, {k: v for k, v in (overrides or {}).items() if k != "scales"})
     validate({**resolved, "scales": raw["scales"]}, f"{source} (scale '{scale}')")
     resolved["volume_sessions"] = [s.replace("{scale}", scale) for s in resolved["volume_sessions"]]
     _check_consistency(resolved, source)
@@ -89,7 +94,10 @@ def load_params(path: str | Path = DEFAULT_PARAMS, overrides: dict | None = None
     except FileNotFoundError:
         raise ConfigError(f"{path}: parameter file not found") from None
     except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML: {exc}") from None
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ConfigError(f"{path}: not valid YAML{where}: {problem}") from None
     if overrides:
         raw = deep_merge(raw or {}, overrides)
-    return resolve(raw, str(path))
+    return resolve(raw, str(path), overrides)

@@ -13,15 +13,14 @@ from tactilepipe.drift.simulate import session_plan as drift_plan
 
 # `config` is params.yaml plus any --config overrides; validate and resolve the scale up front
 # so a wrong key or type stops the run before any job starts.
-try:
-    P = resolve(dict(config), "params.yaml (+ --config)")
-except TactilepipeError as exc:
-    raise WorkflowError(str(exc)) from None
-
 with open("params.yaml") as _fh:
     _FILE_PARAMS = yaml.safe_load(_fh)
 # Overrides given with --config are handed to every CLI call, so each stage sees the same values.
 OVERRIDES = {k: v for k, v in config.items() if _FILE_PARAMS.get(k) != v}
+try:
+    P = resolve(dict(config), "params.yaml (+ --config)", OVERRIDES)
+except TactilepipeError as exc:
+    raise WorkflowError(str(exc)) from None
 CLI = f"{shlex.quote(sys.executable)} -m tactilepipe"
 PARAMS_ARGS = f"--override {shlex.quote(json.dumps(OVERRIDES, sort_keys=True))}" if OVERRIDES else ""
 

@@ -56,6 +56,17 @@ def _longest_run(mask: np.ndarray) -> tuple[int, int]:
     return int(starts[k]), int(stops[k])
 
 
+def _fill_short_gaps(mask: np.ndarray, max_gap: int) -> np.ndarray:
+    """Set runs of False no longer than ``max_gap`` that lie between True samples."""
+    out = mask.copy()
+    edges = np.diff(np.concatenate([[1], mask.astype(np.int8), [1]]))
+    starts, stops = np.flatnonzero(edges == -1), np.flatnonzero(edges == 1)
+    for a, b in zip(starts, stops):
+        if 0 < a and b < len(mask) and b - a <= max_gap:
+            out[a:b] = True
+    return out
+
+
 def off_table_segment(rec: dict, seg: dict, path: str | Path = "?") -> tuple[int, int, str]:
     """Sample range [start, stop) when the container is off the table, and the method used."""
     method = seg["method"]
@@ -73,7 +84,12 @@ def off_table_segment(rec: dict, seg: dict, path: str | Path = "?") -> tuple[int
         smooth = np.convolve(fy, np.ones(width) / width, mode="same")
         rest = np.median(smooth[: max(1, width * 2)])
         level = np.percentile(smooth - rest, 75)
-        mask = (smooth - rest) >= seg["force_fraction"] * level
+        noise = np.std(fy[: max(2, width * 2)]) / np.sqrt(width)   # of the smoothed signal at rest
+        if level < 10 * noise:
+            mask = np.zeros(len(smooth), bool)          # no load rises clearly above the noise
+        else:
+            mask = (smooth - rest) >= seg["force_fraction"] * level
+            mask = _fill_short_gaps(mask, 2 * width)    # noise dips on light loads split the hold
         used = "force"
     start, stop = _longest_run(mask)
     duration = rec["t"][stop - 1] - rec["t"][start] if stop > start else 0.0

@@ -53,7 +53,10 @@ class MLPRegressor:
         if not (np.isfinite(x).all() and np.isfinite(y).all()):
             raise ValueError("fit: inputs or targets contain NaN or inf")
         cfg = self.config
-        rng = np.random.default_rng(self.seed)
+        # each restart has its own initialisation stream (restart 0 is the restarts=1 network);
+        # the minibatch order has another
+        inits = [np.random.default_rng(np.random.SeedSequence([self.seed, k])) for k in range(max(1, cfg.restarts))]
+        rng = np.random.default_rng(np.random.SeedSequence([self.seed, 2**31]))
         self.x_mean, self.x_std = x.mean(0), x.std(0)
         self.x_std[self.x_std == 0] = 1.0
         self.y_mean, self.y_std = y.mean(), y.std() or 1.0
@@ -64,8 +67,8 @@ class MLPRegressor:
         # The restarts train side by side as one batched network (leading axis r): same
         # minibatches, independent initialisations, each stops on its own tol criterion.
         b1, b2 = np.sqrt(6.0 / (d + h)), np.sqrt(6.0 / (h + 1))
-        params = [rng.uniform(-b1, b1, (r, d, h)), rng.uniform(-b1, b1, (r, 1, h)),
-                  rng.uniform(-b2, b2, (r, h, 1)), rng.uniform(-b2, b2, (r, 1, 1))]
+        params = [np.stack([g.uniform(-b, b, shape) for g in inits])
+                  for b, shape in ((b1, (d, h)), (b1, (1, h)), (b2, (h, 1)), (b2, (1, 1)))]
         m = [np.zeros_like(p) for p in params]
         v = [np.zeros_like(p) for p in params]
         beta1, beta2, eps = 0.9, 0.999, 1e-8

@@ -1,0 +1,91 @@
+"""The Arduino's serial log of the Nano17 (format in tool/layout.py), parsed with counted drops.
+
+Serial links garble lines: a partial first line when the port opens, a truncated last line when
+logging stops, the odd corrupted byte. Such lines are dropped and counted (reported in the QC
+report); a log where more than ``max_drop_fraction`` of the lines are bad, or whose Arduino clock
+jumps backwards (a reset mid-trial, after which no single offset aligns the clocks), is an error.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from tactilepipe.errors import InputError
+from tactilepipe.tool.layout import ADC_COUNTS, SERIAL_HEADER
+
+N_CHANNELS = 6
+
+
+@dataclass
+class SerialLog:
+    start_host_ns: int
+    arduino_ms: np.ndarray          # (n,) int64
+    counts: np.ndarray              # (n, 6) ADC counts
+    line_numbers: np.ndarray        # (n,) 1-based line of each kept sample, for error messages
+    drops: Counter = field(default_factory=Counter)
+
+
+def _parse_line(text: str) -> tuple[int, list[int]] | str:
+    """(arduino_ms, counts) or the reason the line is dropped."""
+    if not text.strip():
+        return "empty line"
+    parts = text.strip().split(",")
+    if len(parts) != 1 + N_CHANNELS:
+        return "wrong column count"
+    try:
+        values = [int(p) for p in parts]
+    except ValueError:
+        return "non-numeric field"
+    if values[0] < 0:
+        return "negative time"
+    if any(not 0 <= v <= ADC_COUNTS for v in values[1:]):
+        return "ADC count out of range"
+    return values[0], values[1:]
+
+
+def read_serial_log(path: str | Path, max_drop_fraction: float = 0.2) -> SerialLog:
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(path, "missing: every trial needs the Arduino's force.log") from None
+    lines = data.decode("ascii", errors="replace").splitlines()
+    if not lines:
+        raise InputError(path, "serial log is empty")
+    header = SERIAL_HEADER.match(lines[0])
+    if not header:
+        raise InputError(path, "first line must be '# start_host_ns=<int>'", "line 1")
+    times, counts, numbers, drops = [], [], [], Counter()
+    ends_clean = data.endswith(b"\n")
+    for number, text in enumerate(lines[1:], start=2):
+        if "\ufffd" in text:
+            drops["garbage bytes"] += 1
+            continue
+        parsed = _parse_line(text)
+        if isinstance(parsed, str):
+            is_last = number == len(lines)
+            drops["truncated last line" if is_last and not ends_clean else parsed] += 1
+            continue
+        times.append(parsed[0])
+        counts.append(parsed[1])
+        numbers.append(number)
+    total = len(lines) - 1
+    if not times:
+        raise InputError(path, f"no valid samples in {total} lines ({dict(drops)})")
+    if sum(drops.values()) > max_drop_fraction * total:
+        raise InputError(path, f"{sum(drops.values())} of {total} lines are unreadable ({dict(drops)}); "
+                               f"more than {max_drop_fraction:.0%} means the link or the format is wrong")
+    t = np.asarray(times, np.int64)
+    steps = np.diff(t)
+    if (steps < 0).any():
+        k = int(np.argmax(steps < 0)) + 1
+        raise InputError(path, f"Arduino clock jumps back from {t[k - 1]} to {t[k]} ms (a reset mid-trial?)",
+                         f"line {numbers[k]}")
+    if (steps == 0).any():
+        k = int(np.argmax(steps == 0)) + 1
+        raise InputError(path, f"duplicated Arduino timestamp {t[k]} ms", f"line {numbers[k]}")
+    return SerialLog(int(header.group(1)), t, np.asarray(counts, np.int64), np.asarray(numbers), drops)

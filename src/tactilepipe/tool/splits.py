@@ -1,0 +1,87 @@
+"""Train/validation/test splits of a tool dataset, written as files.
+
+- ``frame``: the public code's random frame-level 70/15/15. Adjacent frames of one press land in
+  different splits, so test frames have near-copies in training: kept only for comparison.
+- ``trial`` (default): whole trials go to one split, 70/15/15 by frame count.
+- ``loto``: leave one tool out (the held-out tool is the test set).
+- ``lopo``: leave one grasp pose out (one pose of every tool is the test set).
+Label normalisation statistics are computed from the training split only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from tactilepipe.errors import InputError
+
+
+def _group_split(groups: pd.Series, fractions: tuple[float, float, float], rng) -> tuple[np.ndarray, ...]:
+    """Assign whole groups to train/val/test so each gets about its fraction of the rows."""
+    sizes = groups.value_counts()
+    order = rng.permutation(sizes.index.to_numpy())
+    total, targets = len(groups), np.cumsum(fractions[:2]) * len(groups)
+    assign, filled = {}, 0
+    for g in order:
+        assign[g] = 0 if filled < targets[0] else (1 if filled < targets[1] else 2)
+        filled += sizes[g]
+    part = groups.map(assign).to_numpy()
+    for k, name in enumerate(("train", "validation", "test")):
+        if not (part == k).any():
+            raise InputError("splits", f"too few groups ({len(sizes)}) to fill the {name} split")
+    return tuple(np.flatnonzero(part == k) for k in range(3))
+
+
+def label_stats(labels: np.ndarray) -> dict:
+    return {"min": float(labels.min()), "max": float(labels.max()), "mean": float(labels.mean()),
+            "std": float(labels.std()) or 1.0}
+
+
+def make_split(samples: pd.DataFrame, name: str, label: str, seed: int, fractions=(0.7, 0.15, 0.15),
+               holdout_tool: str | None = None, holdout_pose: int = 0) -> dict:
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 31337]))
+    if name == "frame":
+        idx = rng.permutation(len(samples))
+        a, b = int(fractions[0] * len(idx)), int((fractions[0] + fractions[1]) * len(idx))
+        train, val, test = np.sort(idx[:a]), np.sort(idx[a:b]), np.sort(idx[b:])
+    elif name == "trial":
+        train, val, test = _group_split(samples["trial"], fractions, rng)
+    elif name == "loto":
+        tools = sorted(samples["tool"].unique())
+        if holdout_tool not in tools:
+            raise InputError("splits", f"held-out tool '{holdout_tool}' is not in the data ({tools})")
+        test = np.flatnonzero(samples["tool"] == holdout_tool)
+        rest = samples[samples["tool"] != holdout_tool]
+        tr, va, _ = _group_split(rest["trial"], (0.85, 0.15, 0.0 + 1e-9), rng) if False else \
+            _two_way(rest["trial"], 0.85, rng)
+        train, val = rest.index.to_numpy()[tr], rest.index.to_numpy()[va]
+    elif name == "lopo":
+        rank = samples.groupby("tool")["pose"].transform(lambda p: p.map({v: i for i, v in enumerate(sorted(p.unique()))}))
+        test = np.flatnonzero(rank == holdout_pose)
+        if len(test) == 0:
+            raise InputError("splits", f"no tool has a pose number {holdout_pose}")
+        rest = samples[rank != holdout_pose]
+        tr, va = _two_way(rest["trial"], 0.85, rng)
+        train, val = rest.index.to_numpy()[tr], rest.index.to_numpy()[va]
+    else:
+        raise InputError("splits", f"unknown split '{name}' (frame, trial, loto, lopo)")
+    return {"name": name, "leaky": name == "frame", "label": label,
+            "train": train.tolist(), "validation": val.tolist(), "test": test.tolist(),
+            "label_stats": label_stats(samples[label].to_numpy()[train]),
+            "trials": {k: sorted(samples["trial"].iloc[v].unique().tolist())
+                       for k, v in (("train", train), ("validation", val), ("test", test))}}
+
+
+def _two_way(groups: pd.Series, train_fraction: float, rng) -> tuple[np.ndarray, np.ndarray]:
+    sizes = groups.value_counts()
+    if len(sizes) < 2:
+        raise InputError("splits", "need at least two trials outside the held-out set")
+    order = rng.permutation(sizes.index.to_numpy())
+    filled, assign = 0, {}
+    for g in order:
+        assign[g] = 0 if filled < train_fraction * len(groups) else 1
+        filled += sizes[g]
+    if all(v == 0 for v in assign.values()):
+        assign[order[-1]] = 1
+    part = groups.map(assign).to_numpy()
+    return np.flatnonzero(part == 0), np.flatnonzero(part == 1)

@@ -1,0 +1,211 @@
+"""params.yaml + schema: every scale loads, every kind of mistake is a ConfigError naming the key
+(also through the CLI: exit code 2 and one line); atomic output writing."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import yaml
+
+from tactilepipe import cli
+from tactilepipe.atomic import atomic_path, write_json, write_text
+from tactilepipe.config import deep_merge, load_params
+from tactilepipe.errors import ConfigError
+
+
+@pytest.fixture(scope="module")
+def raw_params(params_path) -> dict:
+    return yaml.safe_load(params_path.read_text())
+
+
+# --- loading -----------------------------------------------------------------------------------
+
+def test_every_scale_loads(params_path, raw_params):
+    assert set(raw_params["scales"]) >= {"smoke", "default", "paper"}
+    for scale in raw_params["scales"]:
+        p = load_params(params_path, {"scale": scale})
+        assert p["scale"] == scale
+        assert "scales" not in p
+        assert p["volume_sessions"] == [f"sim-{scale}"]        # "{scale}" is filled in
+        need = p["folds"]["train_lifts_per_volume"] + p["folds"]["test_lifts_per_volume"]
+        assert p["simulate_volume"]["lifts_per_volume"] >= need
+
+
+def test_scale_overlay_is_applied(params_path, raw_params):
+    smoke = load_params(params_path, {"scale": "smoke"})
+    default = load_params(params_path, {"scale": "default"})
+    assert smoke["simulate_volume"]["rate_hz"] == 100 and default["simulate_volume"]["rate_hz"] == 500
+    assert smoke["mlp"]["grid"]["inner_folds"] == 2
+    assert smoke["mlp"]["grid"]["modality"] == raw_params["mlp"]["grid"]["modality"]   # deep merge keeps siblings
+    assert smoke["simulate_volume"]["container_mass_g"] == default["simulate_volume"]["container_mass_g"]
+
+
+def test_overrides_are_merged_before_validation(params_path):
+    p = load_params(params_path, {"scale": "default", "seed": 7, "baseline": {"n_mu": 11}})
+    assert p["seed"] == 7 and p["baseline"]["n_mu"] == 11 and p["baseline"]["mu_min"] == 0.1
+
+
+def test_deep_merge_does_not_touch_its_inputs():
+    base = {"a": {"b": 1, "c": [1, 2]}, "d": 1}
+    over = {"a": {"b": 2}, "e": {"f": 3}}
+    out = deep_merge(base, over)
+    assert out == {"a": {"b": 2, "c": [1, 2]}, "d": 1, "e": {"f": 3}}
+    assert base == {"a": {"b": 1, "c": [1, 2]}, "d": 1} and over == {"a": {"b": 2}, "e": {"f": 3}}
+    out["a"]["c"].append(3)
+    assert base["a"]["c"] == [1, 2]
+
+
+# --- mistakes --------------------------------------------------------------------------------------
+
+BAD = [
+    ("wrong_type_top", {"seed": "abc"}, r"invalid parameter at 'seed': 'abc' is not of type 'integer'"),
+    ("negative_seed", {"seed": -1}, r"at 'seed'"),
+    ("wrong_type_nested", {"folds": {"n_folds": 2.5}}, r"at 'folds.n_folds'"),
+    ("wrong_enum_nested", {"simulate_volume": {"rate_hz": 123}}, r"at 'simulate_volume.rate_hz': 123 is not one of"),
+    ("list_expected", {"simulate_volume": {"volumes_ml": 100}}, r"at 'simulate_volume.volumes_ml'"),
+    ("unknown_top_key", {"bogus_key": 1}, r"'bogus_key' was unexpected"),
+    ("unknown_nested_key", {"mlp": {"hiden_units": 4}}, r"at 'mlp'.*'hiden_units' was unexpected"),
+    ("unknown_deep_key", {"mlp": {"grid": {"alphas": [1.0]}}}, r"at 'mlp.grid'.*'alphas' was unexpected"),
+    ("unknown_key_in_scale", {"scales": {"smoke": {"folds": {"n_fold": 2}}}},
+     r"at 'scales.smoke.folds'.*'n_fold' was unexpected"),
+    ("wrong_type_in_scale", {"scales": {"smoke": {"simulate_volume": {"lifts_per_volume": "five"}}}},
+     r"at 'scales.smoke.simulate_volume.lifts_per_volume'"),
+    ("unknown_scale", {"scale": "huge"}, r"unknown scale 'huge' \(choose one of \['default', 'paper', 'smoke'\]\)"),
+    ("too_few_lifts", {"scale": "default", "simulate_volume": {"lifts_per_volume": 12}},
+     r"simulate_volume.lifts_per_volume=12 is fewer than the 14 lifts per volume the folds need"),
+    ("too_few_lifts_in_scale", {"scale": "smoke", "scales": {"smoke": {"simulate_volume": {"lifts_per_volume": 4}}}},
+     r"simulate_volume.lifts_per_volume=4 is fewer than the 5"),
+    ("mu_equal", {"baseline": {"mu_min": 0.3, "mu_max": 0.3}}, r"baseline.mu_min must be below baseline.mu_max"),
+    ("mu_reversed", {"baseline": {"mu_min": 0.4, "mu_max": 0.1}}, r"baseline.mu_min must be below baseline.mu_max"),
+    ("grid_modality", {"mlp": {"grid": {"modality": "fxyz"}}}, r"mlp.grid.modality 'fxyz' is not one of mlp.modalities"),
+    ("kinetic_above_static", {"simulate_volume": {"friction_static": 0.3, "friction_kinetic": 0.5}},
+     r"simulate_volume.friction_kinetic must not exceed friction_static"),
+    ("bad_modality_axis", {"mlp": {"modalities": {"fw": ["fw"]}}}, r"at 'mlp.modalities.fw.0'"),
+]
+
+
+@pytest.mark.parametrize("name, overrides, problem", BAD, ids=[b[0] for b in BAD])
+def test_bad_parameters_raise_config_error_naming_the_key(params_path, name, overrides, problem):
+    with pytest.raises(ConfigError, match=problem) as err:
+        load_params(params_path, overrides)
+    assert str(err.value).startswith(str(params_path))
+    assert "\n" not in str(err.value)
+
+
+def test_missing_required_group(tmp_path, raw_params):
+    bad = dict(raw_params)
+    del bad["segment"]
+    path = tmp_path / "p.yaml"
+    path.write_text(yaml.safe_dump(bad))
+    with pytest.raises(ConfigError, match=r"'segment' is a required property"):
+        load_params(path)
+
+
+@pytest.mark.parametrize("text, problem", [("", "expected a mapping"), ("- 1\n- 2\n", "expected a mapping"),
+                                           ("seed: [1, 2\n", "not valid YAML")])
+def test_unusable_files(tmp_path, text, problem):
+    path = tmp_path / "p.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=problem):
+        load_params(path)
+    with pytest.raises(ConfigError, match="parameter file not found"):
+        load_params(tmp_path / "absent.yaml")
+
+
+# --- through the CLI -----------------------------------------------------------------------------
+
+def _split(tmp_path, params, *extra):
+    out = tmp_path / "folds.json"
+    return out, ["split", "--params", str(params), "--dataset", str(tmp_path / "data.parquet"),
+                 "--out", str(out), *extra]
+
+
+def _assert_one_line_error(capsys, *needles):
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1, captured.err
+    assert lines[0].startswith("tactilepipe split: error: ")
+    for needle in needles:
+        assert needle in lines[0], lines[0]
+    assert "Traceback" not in captured.err
+
+
+@pytest.mark.parametrize("change, needle", [
+    ({"seed": "abc"}, "'seed'"),
+    ({"folds": {"n_folds": 0}}, "'folds.n_folds'"),
+    ({"baseline": {"mu_min": 0.5}}, "baseline.mu_min"),
+    ({"unknown": 1}, "'unknown' was unexpected"),
+])
+def test_cli_split_with_bad_params_exits_2_with_one_line(tmp_path, raw_params, capsys, change, needle):
+    params = tmp_path / "bad.yaml"
+    params.write_text(yaml.safe_dump(deep_merge(raw_params, change)))
+    out, argv = _split(tmp_path, params)
+    assert cli.main(argv) == 2
+    _assert_one_line_error(capsys, str(params), needle)
+    assert not out.exists()
+
+
+def test_cli_split_with_missing_params_file(tmp_path, capsys):
+    out, argv = _split(tmp_path, tmp_path / "nope.yaml")
+    assert cli.main(argv) == 2
+    _assert_one_line_error(capsys, "nope.yaml", "not found")
+
+
+def test_cli_split_with_bad_override(tmp_path, params_path, capsys):
+    out, argv = _split(tmp_path, params_path, "--override", json.dumps({"scale": "gigantic"}))
+    assert cli.main(argv) == 2
+    _assert_one_line_error(capsys, "unknown scale 'gigantic'")
+
+
+def test_cli_split_with_yaml_syntax_error_prints_one_line(tmp_path, capsys):
+    params = tmp_path / "broken.yaml"
+    params.write_text("seed: [1, 2\nscale: smoke\n")
+    out, argv = _split(tmp_path, params)
+    assert cli.main(argv) == 2
+    _assert_one_line_error(capsys, "broken.yaml", "not valid YAML", "line 2")
+
+
+def test_cli_split_with_malformed_override_json(tmp_path, params_path, capsys):
+    out, argv = _split(tmp_path, params_path, "--override", "{scale: smoke")
+    assert cli.main(argv) == 2
+    _assert_one_line_error(capsys, "--override")
+
+
+# --- atomic outputs ----------------------------------------------------------------------------
+
+def test_atomic_path_failure_leaves_nothing(tmp_path):
+    target = tmp_path / "out" / "result.json"
+    with pytest.raises(RuntimeError, match="boom"):
+        with atomic_path(target) as tmp:
+            assert tmp.parent == target.parent and tmp != target
+            tmp.write_text("half written")
+            raise RuntimeError("boom")
+    assert not target.exists()
+    assert list(target.parent.iterdir()) == []
+
+
+def test_atomic_path_failure_keeps_the_old_target(tmp_path):
+    target = tmp_path / "result.txt"
+    target.write_text("old")
+    with pytest.raises(KeyboardInterrupt):
+        with atomic_path(target) as tmp:
+            tmp.write_text("new but interrupted")
+            raise KeyboardInterrupt
+    assert target.read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["result.txt"]
+
+
+def test_atomic_writes_replace_the_target(tmp_path):
+    target = tmp_path / "a" / "b.json"
+    write_json(target, {"z": 1, "a": [1, 2]})
+    assert json.loads(target.read_text()) == {"z": 1, "a": [1, 2]}
+    write_text(target, "replaced\n")
+    assert target.read_text() == "replaced\n"
+    assert [p.name for p in target.parent.iterdir()] == ["b.json"]
+
+
+def test_an_explicit_override_wins_over_the_scale_overlay(params_path):
+    p = load_params(params_path, {"scale": "smoke", "simulate_volume": {"rate_hz": 500}})
+    assert p["simulate_volume"]["rate_hz"] == 500
+    assert p["simulate_volume"]["lifts_per_volume"] == 5          # the rest of the overlay still applies
