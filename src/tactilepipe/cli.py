@@ -68,6 +68,12 @@ def cmd_simulate(args) -> None:
         _run_parallel(jobs, args.jobs, "simulate volume")
         if args.labels:
             sim.write_session_labels(out, plan)
+    elif args.what == "tool":
+        from tactilepipe.tool import simulate as tsim
+        plan = tsim.session_plan(p)
+        chosen = [t for t in plan if not args.lifts or t.name in args.lifts]
+        tsim.write_session_calibration(out, p)
+        _run_parallel([(tsim.write_trial, out, t, p) for t in chosen], args.jobs, "simulate tool")
     else:
         from tactilepipe.drift import simulate as dsim
         names = args.lifts or dsim.session_plan(p)
@@ -82,6 +88,34 @@ def cmd_ingest(args) -> None:
     for bag, shard in zip(args.bags[0::2], args.bags[1::2]):
         info = ingest_bag(bag, shard)
         print(json.dumps(info))
+
+
+def cmd_ingest_tool(args) -> None:
+    from tactilepipe.tool.importers import open_trial
+    from tactilepipe.tool.ingest import ingest_trial
+    p = _params(args)
+    ti = p["tool_ingest"]
+    raw = open_trial(args.trial, args.format, ti["ros_topics"])
+    info = ingest_trial(raw, args.out, ti["image_size"], ti["max_offset_s"])
+    print(json.dumps({k: info[k] for k in ("trial", "frames", "force_samples", "clock", "drops")}))
+
+
+def cmd_tool_dataset(args) -> None:
+    from tactilepipe.tool.dataset import build_tool_dataset
+    p = _params(args)
+    build_tool_dataset([Path(s) for s in args.shards], args.kind, Path(args.out_dir), p["tool_sync"])
+
+
+def cmd_tool_split(args) -> None:
+    import pandas as pd
+    from tactilepipe.atomic import write_json
+    from tactilepipe.tool.splits import make_split
+    p = _params(args)
+    sp = p["tool_split"]
+    samples = pd.read_parquet(Path(args.data_dir) / "samples.parquet")
+    split = make_split(samples, args.split, args.label, p["seed"], tuple(sp["fractions"]),
+                       sp["holdout_tool"], sp["holdout_pose"])
+    write_json(args.out, split)
 
 
 def _session_lifts(p: dict, raw_root: Path, shard_root: Path):
@@ -170,9 +204,13 @@ def cmd_report(args) -> None:
     if args.what == "volume":
         from tactilepipe.volume.report import build_report
         build_report(Path(args.in_dir), p, Path(args.raw_root), Path(args.shard_root))
-    else:
+    elif args.what == "drift":
         from tactilepipe.drift.analyse import run
         run([Path(s) for s in args.shards], Path(args.in_dir), p)
+    else:
+        from tactilepipe.tool.report_data import build_data_report
+        label = "fz" if args.what == "tool_normal" else "fs"
+        build_data_report(Path(args.in_dir) / "data", Path(args.in_dir), label, p["tool_split"]["level_n"])
 
 
 # --- argument parsing -------------------------------------------------------------------------
@@ -186,7 +224,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="STAGE")
 
     s = sub.add_parser("simulate", parents=[common], help="write simulated raw recordings (ROS1 bags)")
-    s.add_argument("what", choices=["volume", "drift"])
+    s.add_argument("what", choices=["volume", "drift", "tool"])
     s.add_argument("--out-dir", required=True, help="session folder, e.g. raw/volume/sim-default")
     s.add_argument("--lifts", nargs="*", help="only these recordings (default: the whole session)")
     s.add_argument("--labels", action="store_true", help="also write the session's lifts.csv")
@@ -196,6 +234,25 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("ingest", help="PapillArray bag(s) -> Parquet shard(s)")
     s.add_argument("bags", nargs="+", metavar="BAG SHARD", help="pairs: input bag, output shard")
     s.set_defaults(func=cmd_ingest)
+
+    s = sub.add_parser("ingest-tool", parents=[common], help="tool trial (native, public or ROS) -> Parquet shard")
+    s.add_argument("trial", help="trial folder or bag")
+    s.add_argument("--format", choices=["native", "public", "ros"], required=True)
+    s.add_argument("--out", required=True)
+    s.set_defaults(func=cmd_ingest_tool)
+
+    s = sub.add_parser("tool-dataset", parents=[common], help="sync frames and force, references -> arrays")
+    s.add_argument("--kind", choices=["normal", "shear"], required=True)
+    s.add_argument("--shards", nargs="+", required=True)
+    s.add_argument("--out-dir", required=True)
+    s.set_defaults(func=cmd_tool_dataset)
+
+    s = sub.add_parser("tool-split", parents=[common], help="train/validation/test split of a tool dataset")
+    s.add_argument("--data-dir", required=True)
+    s.add_argument("--split", choices=["frame", "trial", "loto", "lopo"], required=True)
+    s.add_argument("--label", choices=["fz", "fs"], required=True)
+    s.add_argument("--out", required=True)
+    s.set_defaults(func=cmd_tool_split)
 
     s = sub.add_parser("dataset", parents=[common], help="segment the off-table phase of every lift")
     s.add_argument("--raw-root", default="raw/volume")
@@ -229,7 +286,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_baseline)
 
     s = sub.add_parser("report", parents=[common], help="metrics.json, tables and figures of a scene")
-    s.add_argument("what", choices=["volume", "drift"])
+    s.add_argument("what", choices=["volume", "drift", "tool_normal", "tool_shear"])
     s.add_argument("--in-dir", required=True, help="the scene's results folder")
     s.add_argument("--raw-root", default="raw/volume")
     s.add_argument("--shard-root", default="results/volume/shards")

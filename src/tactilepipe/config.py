@@ -64,7 +64,8 @@ def resolve(raw: dict, source: str = "params.yaml", overrides: dict | None = Non
     resolved = deep_merge({k: v for k, v in raw.items() if k != "scales"}, raw["scales"][scale])
     resolved = deep_merge(resolved, {k: v for k, v in (overrides or {}).items() if k != "scales"})
     validate({**resolved, "scales": raw["scales"]}, f"{source} (scale '{scale}')")
-    resolved["volume_sessions"] = [s.replace("{scale}", scale) for s in resolved["volume_sessions"]]
+    for key in ("volume_sessions", "tool_sessions"):
+        resolved[key] = [s.replace("{scale}", scale) for s in resolved[key]]
     _check_consistency(resolved, source)
     return resolved
 
@@ -82,6 +83,8 @@ def _check_consistency(p: dict, source: str) -> None:
     if p["mlp"]["grid"]["modality"] not in p["mlp"]["modalities"]:
         raise ConfigError(f"{source}: mlp.grid.modality '{p['mlp']['grid']['modality']}' is not one of "
                           f"mlp.modalities {sorted(p['mlp']['modalities'])}")
+    if abs(sum(p["tool_split"]["fractions"]) - 1.0) > 1e-6:
+        raise ConfigError(f"{source}: tool_split.fractions must sum to 1 (got {p['tool_split']['fractions']})")
     if p["simulate_volume"]["friction_kinetic"] > p["simulate_volume"]["friction_static"]:
         raise ConfigError(f"{source}: simulate_volume.friction_kinetic must not exceed friction_static")
 

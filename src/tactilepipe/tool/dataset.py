@@ -101,11 +101,11 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
             rows.append(pd.DataFrame({
                 "trial_index": ti, "trial": info["trial"], "tool": info["tool"],
                 "orientation_deg": info["orientation_deg"], "insertion_mm": info["insertion_mm"],
-                "t_s": t_s, "fx": fx, "fy": fy, "fz": fz, "fs": fs}))
+                "t_ns": trial["t_ns"], "t_s": t_s, "fx": fx, "fy": fy, "fz": fz, "fs": fs}))
             qc.append({"trial": info["trial"], "tool": info["tool"], "frames": info["frames"], "pairs": m,
                        "drops": dict(trial["drops"]), "clock": info["clock"],
                        "force_min_n": float(label_mag.min()), "force_max_n": float(label_mag.max()),
-                       "reference_frames": int(len(ref_idx))})
+                       "reference_frames": int(len(ref_idx)), "source": info["source"]})
             k += m
         frames.flush()
         refs.flush()

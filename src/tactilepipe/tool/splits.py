@@ -52,8 +52,7 @@ def make_split(samples: pd.DataFrame, name: str, label: str, seed: int, fraction
             raise InputError("splits", f"held-out tool '{holdout_tool}' is not in the data ({tools})")
         test = np.flatnonzero(samples["tool"] == holdout_tool)
         rest = samples[samples["tool"] != holdout_tool]
-        tr, va, _ = _group_split(rest["trial"], (0.85, 0.15, 0.0 + 1e-9), rng) if False else \
-            _two_way(rest["trial"], 0.85, rng)
+        tr, va = _two_way(rest["trial"], 0.85, rng)
         train, val = rest.index.to_numpy()[tr], rest.index.to_numpy()[va]
     elif name == "lopo":
         rank = samples.groupby("tool")["pose"].transform(lambda p: p.map({v: i for i, v in enumerate(sorted(p.unique()))}))

@@ -1,0 +1,94 @@
+"""Find the trials of a recording session and open each one as a RawTrial, whatever its format.
+
+A session folder raw/tool/<session>/ holds trials in one of three layouts:
+- native (what our rig and the simulator write): <trial>/meta.json + digit_*/ + force.log
+- the public dataset of study 000: data_normal/<trial>/ and data_shear/<trial>/ (tactile1,
+  tactile2, force); tools and poses, which that layout does not record, come from an optional
+  trials.csv (trial,tool,orientation_deg,insertion_mm)
+- ROS bags: <trial>.bag (ROS1) or <trial>/metadata.yaml (ROS2 sqlite3/mcap), each with a
+  <trial>.meta.json sidecar; topic names from params (tool_ingest.ros_topics)
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from tactilepipe.errors import InputError
+from tactilepipe.tool.raw import RawTrial, SensorFrames
+
+PUBLIC_KINDS = {"data_normal": "normal", "data_shear": "shear"}
+PUBLIC_RATE_HZ = 15.0          # the public rig samples frames and force together at 15 FPS
+
+
+def list_trials(session_dir: str | Path) -> list[tuple[str, Path, str]]:
+    """(trial name, path, format) of every trial in a session, sorted by name."""
+    session_dir = Path(session_dir)
+    if not session_dir.is_dir():
+        raise InputError(session_dir, "session folder not found")
+    found = []
+    for path in sorted(session_dir.iterdir()):
+        if path.is_dir() and (path / "meta.json").exists():
+            found.append((path.name, path, "native"))
+        elif path.is_dir() and path.name in PUBLIC_KINDS:
+            found += [(f"{path.name}-{t.name}", t, "public") for t in sorted(path.iterdir()) if t.is_dir()]
+        elif path.suffix == ".bag" or (path.is_dir() and (path / "metadata.yaml").exists()):
+            found.append((path.stem if path.is_file() else path.name, path, "ros"))
+    if not found:
+        raise InputError(session_dir, "no trials found (native trial folders, data_normal/ or data_shear/, "
+                                      "or ROS bags with .meta.json sidecars)")
+    return found
+
+
+def _public_meta(session_dir: Path) -> dict[str, dict]:
+    path = session_dir / "trials.csv"
+    if not path.exists():
+        return {}
+    with path.open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    out = {}
+    for line, row in enumerate(rows, start=2):
+        try:
+            out[row["trial"]] = {"tool": row["tool"], "orientation_deg": float(row["orientation_deg"]),
+                                 "insertion_mm": float(row["insertion_mm"])}
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(path, f"expected trial,tool,orientation_deg,insertion_mm ({exc})", f"line {line}") from None
+    return out
+
+
+def open_public_trial(trial_dir: Path) -> RawTrial:
+    from tactilepipe.tool.public_layout import read_public_trial
+    kind = PUBLIC_KINDS[trial_dir.parent.name]
+    data = read_public_trial(trial_dir, kind)
+    n = len(data["force_n"])
+    host_ns = (np.asarray(data["index"], np.int64) * (1e9 / PUBLIC_RATE_HZ)).astype(np.int64)
+    force = np.zeros((n, 3))
+    force[:, 2 if kind == "normal" else 0] = data["force_n"]   # the public labels are magnitudes
+    session_dir = trial_dir.parent.parent
+    meta = _public_meta(session_dir).get(trial_dir.name, {"tool": "unknown", "orientation_deg": float("nan"),
+                                                          "insertion_mm": float("nan")})
+    frames = {name: SensorFrames(host_ns, (lambda imgs: lambda i: imgs[i])(data[key]),
+                                 [f"{trial_dir}/{sub} frame {i}" for i in range(n)])
+              for name, key, sub in (("digit_left", "frames_left", "tactile1"), ("digit_right", "frames_right", "tactile2"))}
+    return RawTrial(trial=f"{session_dir.name}/{trial_dir.parent.name}-{trial_dir.name}", kind=kind,
+                    frames=frames, force_host_ns=host_ns, force_n=force, source=str(trial_dir),
+                    clock={"method": "public_layout_paired_by_index", "offset_s": 0.0},
+                    drops={"public: below 0 N": int(data.get("dropped", 0))}, **meta)
+
+
+def open_trial(path: str | Path, fmt: str, ros_topics: dict | None = None) -> RawTrial:
+    path = Path(path)
+    if fmt == "native":
+        from tactilepipe.tool.native_import import read_native_trial
+        return read_native_trial(path)
+    if fmt == "public":
+        return open_public_trial(path)
+    if fmt == "ros":
+        from tactilepipe.tool.rosbag_import import DEFAULT_TOPICS, read_ros_trial, read_sidecar_meta
+        meta = read_sidecar_meta(path)
+        raw = read_ros_trial(path, meta, ros_topics or DEFAULT_TOPICS)
+        raw.trial = f"{path.parent.name}/{raw.trial.split('/')[-1]}"
+        return raw
+    raise InputError(path, f"unknown trial format '{fmt}'")

@@ -1,0 +1,147 @@
+"""Native trial -> shard -> synced dataset, on a hand-built trial with a known clock offset."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from tactilepipe.errors import InputError
+from tactilepipe.tool.dataset import build_tool_dataset
+from tactilepipe.tool.ingest import ingest_trial, read_shard_info
+from tactilepipe.tool.layout import FRAME_H, FRAME_W, TrialMeta, write_calibration
+from tactilepipe.tool.loader import ToolFrames
+from tactilepipe.tool.native_import import read_native_trial
+
+CAL = np.diag([8.0, 8.0, 20.0, 100.0, 100.0, 100.0])   # N/V: 5/1023 V per count -> ~0.1 N per Fz count
+START_NS = 1_700_000_000_000_000_000
+SYNC = {"max_gap_s": 0.2, "reference": "first", "contact_n": 0.5}
+
+
+def force_curve(t):
+    """Two presses of 12 and 20 N, rest at 0 N before, between and after."""
+    return 12 * np.exp(-((t - 2.0) / 0.5) ** 2) + 20 * np.exp(-((t - 5.0) / 0.6) ** 2)
+
+
+def make_trial(session: Path, name: str, offset_s: float, kind: str = "normal", seconds: float = 7.0) -> Path:
+    trial = session / name
+    for s, gain in (("digit_left", 1.0), ("digit_right", 0.6)):
+        d = trial / s
+        d.mkdir(parents=True)
+        t = np.arange(0, seconds, 1 / 30)
+        yy, xx = np.mgrid[0:FRAME_H, 0:FRAME_W]
+        base = np.stack([90 + 40 * xx / FRAME_W, 110 + 30 * yy / FRAME_H, 150 + 0 * xx], -1)
+        lines = ["frame,host_ns"]
+        for i, ti in enumerate(t):
+            blob = gain * 4 * force_curve(ti) * np.exp(-((xx - 120) ** 2 + (yy - 160) ** 2) / 900.0)
+            img = np.clip(base + blob[..., None], 0, 255).astype(np.uint8)
+            cv2.imwrite(str(d / f"frame_{i:06d}.png"), img)
+            lines.append(f"{i},{START_NS + int(ti * 1e9) + (3_000_000 if s == 'digit_right' else 0)}")
+        (d / "frames.csv").write_text("\n".join(lines) + "\n")
+    # the Arduino clock starts when the port opens; the host header is off by offset_s
+    ft = np.arange(0.0, seconds, 1 / 15)
+    volts_z = force_curve(ft) / CAL[2, 2]
+    counts = np.full((len(ft), 6), 512)
+    counts[:, 2] = np.round(512 + volts_z * 1023 / 5).astype(int)
+    arduino_ms = np.round((ft + offset_s) * 1000).astype(int) + 1000
+    header_ns = START_NS - 1_000_000_000
+    rows = [f"# start_host_ns={header_ns}"] + [",".join(map(str, [ms, *c])) for ms, c in zip(arduino_ms, counts)]
+    (trial / "force.log").write_text("\n".join(rows) + "\n")
+    TrialMeta(trial=name, tool="screwdriver_1", kind=kind, orientation_deg=5.0, insertion_mm=14.0).write(trial)
+    return trial
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory):
+    s = tmp_path_factory.mktemp("tool") / "lab-1"
+    s.mkdir()
+    write_calibration(s / "nano17.cal", CAL)
+    make_trial(s, "t00", offset_s=0.25)
+    make_trial(s, "t01", offset_s=-0.15)
+    return s
+
+
+def test_native_trial_reads_frames_and_calibrated_force(session):
+    raw = read_native_trial(session / "t00")
+    assert raw.tool == "screwdriver_1" and raw.kind == "normal"
+    assert len(raw.frames["digit_left"]) == 210
+    assert raw.frames["digit_left"].load(0).shape == (FRAME_H, FRAME_W, 3)
+    assert raw.force_n[:, 2].max() == pytest.approx(20.0, abs=0.3)       # within ADC resolution
+    assert raw.clock["refine"]
+
+
+@pytest.mark.parametrize("trial, offset", [("t00", 0.25), ("t01", -0.15)])
+def test_ingest_finds_the_clock_offset(session, tmp_path, trial, offset):
+    info = ingest_trial(read_native_trial(session / trial), tmp_path / "s.parquet", image_size=32)
+    # the coarse force time is off by -offset (Arduino ahead); refinement must undo it
+    assert info["clock"]["refined_shift_s"] == pytest.approx(-offset, abs=0.02)
+    assert read_shard_info(tmp_path / "s.parquet")["frames"] == {"digit_left": 210, "digit_right": 210}
+
+
+def test_dataset_pairs_frames_with_synced_forces(session, tmp_path):
+    shards = []
+    for trial in ("t00", "t01"):
+        ingest_trial(read_native_trial(session / trial), tmp_path / f"{trial}.parquet", image_size=32)
+        shards.append(tmp_path / f"{trial}.parquet")
+    build_tool_dataset(shards, "normal", tmp_path / "data", SYNC)
+    data = ToolFrames(tmp_path / "data", "fz")
+    assert len(data) > 390 and data.frames.shape[1:] == (2, 32, 32)
+    t = data.samples["t_s"].to_numpy()
+    truth = force_curve(t)
+    assert np.abs(data.labels - truth).max() < 0.6            # synced within the ADC and interpolation error
+    x, y = data.arrays(np.array([5, 1, 3]))
+    assert x.shape == (3, 4, 32, 32) and x.dtype == np.uint8
+    assert np.array_equal(x[:, 1], np.broadcast_to(data.references[0, 0], (3, 32, 32)))
+    qc = json.loads((tmp_path / "data" / "qc.json").read_text())
+    assert [t["pairs"] for t in qc["trials"]] == [len(data.samples[data.samples.trial_index == k]) for k in (0, 1)]
+
+
+def test_force_gaps_drop_frames_and_are_counted(session, tmp_path):
+    trial = tmp_path / "lab-1" / "gap"
+    shutil.copytree(session / "t00", trial)
+    shutil.copy(session / "nano17.cal", tmp_path / "lab-1")
+    lines = (trial / "force.log").read_text().splitlines()
+    (trial / "force.log").write_text("\n".join(lines[:40] + lines[55:]) + "\n")   # 1 s of serial missing
+    ingest_trial(read_native_trial(trial), tmp_path / "g.parquet", image_size=32)
+    build_tool_dataset([tmp_path / "g.parquet"], "normal", tmp_path / "data", SYNC)
+    qc = json.loads((tmp_path / "data" / "qc.json").read_text())
+    dropped = qc["trials"][0]["drops"]["force gap"]
+    gap_s = 16 / 15                     # 15 samples removed: the bracketing samples are 16 periods apart
+    assert abs(dropped - gap_s * 30) <= 3           # every 30 fps frame inside the gap, give or take the edges
+
+
+def _broken_copy(session, tmp_path, break_it):
+    root = tmp_path / "lab-1"
+    shutil.copytree(session, root)
+    trial = root / "t00"
+    break_it(trial)
+    return trial
+
+
+@pytest.mark.parametrize("break_it, needle", [
+    (lambda t: (t / "digit_left" / "frame_000005.png").unlink(), "files are missing"),
+    (lambda t: (t / "digit_left" / "frame_000003.png").write_bytes(b"not a png"), "unreadable"),
+    (lambda t: cv2.imwrite(str(t / "digit_right" / "frame_000002.png"), np.zeros((240, 320, 3), np.uint8)),
+     "expected 240x320"),
+    (lambda t: cv2.imwrite(str(t / "digit_right" / "frame_000002.png"), np.zeros((320, 240), np.uint8)),
+     "grayscale image"),
+    (lambda t: (t / "force.log").write_text("# start_host_ns=1\n100,1,1,1,1,1,1\n50,1,1,1,1,1,1\n"),
+     "jumps back"),
+    (lambda t: (t / "meta.json").unlink(), "meta.json"),
+    (lambda t: (t.parent / "nano17.cal").unlink(), "calibration"),
+    (lambda t: (t / "digit_left" / "frames.csv").write_text("frame,host_ns\n0,10\n1,5\n"), "do not increase"),
+    (lambda t: shutil.rmtree(t / "digit_right"), "missing sensor folder"),
+])
+def test_bad_trials_raise_clear_errors(session, tmp_path, break_it, needle):
+    trial = _broken_copy(session, tmp_path, break_it)
+    with pytest.raises(InputError) as err:
+        raw = read_native_trial(trial)
+        ingest_trial(raw, tmp_path / "out.parquet", image_size=32)
+    assert needle in str(err.value)
+    assert "lab-1" in str(err.value)                    # names the file
+    assert not (tmp_path / "out.parquet").exists()
+    assert not list(tmp_path.glob(".out.parquet*"))
