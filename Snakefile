@@ -10,6 +10,7 @@ include: "workflow/rules/simulate.smk"
 include: "workflow/rules/ingest.smk"
 include: "workflow/rules/volume.smk"
 include: "workflow/rules/drift.smk"
+include: "workflow/rules/tool.smk"
 
 
 rule all:

@@ -19,7 +19,7 @@ from tactilepipe.tool.native_import import read_native_trial
 
 CAL = np.diag([8.0, 8.0, 20.0, 100.0, 100.0, 100.0])   # N/V: 5/1023 V per count -> ~0.1 N per Fz count
 START_NS = 1_700_000_000_000_000_000
-SYNC = {"max_gap_s": 0.2, "reference": "first", "contact_n": 0.5}
+SYNC = {"max_gap_s": 0.2, "reference": "first", "contact_n": 0.5, "normal_sign": 1}  # this rig reads +Fz
 
 
 def force_curve(t):

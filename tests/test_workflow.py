@@ -67,6 +67,13 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_run: Path):
     d = json.loads((wd / "results/drift/metrics.json").read_text())
     assert d["drift_30min_n"]["loaded"] > d["drift_30min_n"]["unloaded"] > 0
     assert (wd / "results/drift/figures/drift_curves.png").exists()
+    for scene in ("tool_normal", "tool_shear"):
+        for split in ("frame", "trial", "loto", "lopo"):
+            split_json = json.loads((wd / f"results/{scene}/splits/{split}.json").read_text())
+            assert split_json["train"] and split_json["test"]
+        for fig in ("pressing_strip", "rmse_vs_force", "force_profiles", "force_histogram"):
+            assert (wd / f"results/{scene}/figures/{fig}.png").read_bytes()[:4] == b"\x89PNG"
+        assert "| trial |" in (wd / f"results/{scene}/qc.md").read_text()
     # every rule logs; raw recordings are bags, shards are Parquet
     assert len(list((wd / "results/logs").rglob("*.log"))) > 10
     assert list((wd / "raw/volume/sim-smoke").glob("*.bag")) and (wd / "raw/volume/sim-smoke/lifts.csv").exists()
@@ -95,7 +102,7 @@ def test_a_scene_pulls_in_only_its_rules(tmp_path: Path):
     wd = copy_project(tmp_path)
     out = snakemake(wd, "-n", "--config", "scale=smoke", "scenes=[drift]").stdout
     assert "simulate_drift" in out and "drift_report" in out
-    for rule in ("simulate_volume", "volume_dataset", "volume_train", "volume_report"):
+    for rule in ("simulate_volume", "volume_dataset", "volume_train", "volume_report", "simulate_tool", "ingest_tool"):
         assert rule not in out, rule
 
 
@@ -125,5 +132,5 @@ def test_dvc_repro_reproduces_the_results(tmp_path: Path):
     status = run([str(BIN / "dvc"), "status"], wd).stdout
     assert "up to date" in status.lower(), status
     lock = yaml.safe_load((wd / "dvc.lock").read_text())
-    assert set(lock["stages"]) == {"simulate_volume", "simulate_drift", "volume", "drift"}
+    assert set(lock["stages"]) == {"simulate_volume", "simulate_drift", "volume", "drift", "simulate_tool", "tool_data"}
     assert "mlp" in lock["stages"]["volume"]["params"]["params.yaml"]

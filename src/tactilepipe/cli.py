@@ -209,7 +209,7 @@ def cmd_report(args) -> None:
         run([Path(s) for s in args.shards], Path(args.in_dir), p)
     else:
         from tactilepipe.tool.report_data import build_data_report
-        label = "fz" if args.what == "tool_normal" else "fs"
+        label = "normal" if args.what == "tool_normal" else "shear"
         build_data_report(Path(args.in_dir) / "data", Path(args.in_dir), label, p["tool_split"]["level_n"])
 
 
@@ -250,7 +250,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("tool-split", parents=[common], help="train/validation/test split of a tool dataset")
     s.add_argument("--data-dir", required=True)
     s.add_argument("--split", choices=["frame", "trial", "loto", "lopo"], required=True)
-    s.add_argument("--label", choices=["fz", "fs"], required=True)
+    s.add_argument("--label", choices=["normal", "shear"], required=True)
     s.add_argument("--out", required=True)
     s.set_defaults(func=cmd_tool_split)
 

@@ -10,6 +10,8 @@ from tactilepipe.config import resolve
 from tactilepipe.errors import TactilepipeError
 from tactilepipe.volume.simulate import read_session_labels, session_plan
 from tactilepipe.drift.simulate import session_plan as drift_plan
+from tactilepipe.tool.importers import list_trials as list_tool_trials
+from tactilepipe.tool.simulate import session_plan as tool_plan
 
 # `config` is params.yaml plus any --config overrides; validate and resolve the scale up front
 # so a wrong key or type stops the run before any job starts.
@@ -65,8 +67,73 @@ VOLUME_TARGETS = [
 DRIFT_TARGETS = [f"{DRIFT}/metrics.json", f"{DRIFT}/fits.md", f"{DRIFT}/figures/drift_curves.png"]
 
 
+def tool_trials(session):
+    """(name, path, format) of a tool session's trials: planned by the simulator, or found on disk."""
+    if is_simulated(session):
+        return [(t.name, f"raw/tool/{session}/{t.name}", "native") for t in tool_plan(P)]
+    return [(name, str(path), fmt) for name, path, fmt in list_tool_trials(f"raw/tool/{session}")]
+
+
+def tool_trial_names(session):
+    return [name for name, _, _ in tool_trials(session)]
+
+
+def _tool_trial(session, trial):
+    for name, path, fmt in tool_trials(session):
+        if name == trial:
+            return path, fmt
+    raise WorkflowError(f"no trial {trial} in raw/tool/{session}")
+
+
+def tool_trial_path(session, trial):
+    return _tool_trial(session, trial)[0]
+
+
+def tool_trial_format(session, trial):
+    return _tool_trial(session, trial)[1]
+
+
+def tool_trial_input(w):
+    """The files a trial's ingest reads (so Snakemake re-ingests exactly the trials that change)."""
+    path, fmt = _tool_trial(w.session, w.trial)
+    if is_simulated(w.session):
+        return [f"raw/tool/{w.session}/nano17.cal", f"{path}/meta.json"]
+    return [p for p in Path(path).rglob("*") if p.is_file()] if Path(path).is_dir() else [path]
+
+
+def _tool_kind(session, name):
+    if is_simulated(session):
+        return next(t.kind for t in tool_plan(P) if t.name == name)
+    path, fmt = _tool_trial(session, name)
+    if fmt == "native":
+        return json.loads((Path(path) / "meta.json").read_text())["kind"]
+    if fmt == "public":
+        return "normal" if "data_normal" in path else "shear"
+    from tactilepipe.tool.rosbag_import import read_sidecar_meta
+    return read_sidecar_meta(path)["kind"]
+
+
+def tool_shards(kind):
+    return [f"results/tool/shards/{s}/{name}.parquet" for s in P["tool_sessions"]
+            for name in tool_trial_names(s) if _tool_kind(s, name) == kind]
+
+
+def tool_raw_inputs(kind):
+    """Raw trials of this kind (the pressing-strip figure shows their colour frames)."""
+    return [f for s in P["tool_sessions"] for name in tool_trial_names(s) if _tool_kind(s, name) == kind
+            for f in tool_trial_input(type("W", (), {"session": s, "trial": name})())]
+
+
+def tool_targets(scene):
+    return [f"results/{scene}/qc.md", f"results/{scene}/figures/pressing_strip.png",
+            f"results/{scene}/figures/rmse_vs_force.png", f"results/{scene}/figures/force_profiles.png",
+            f"results/{scene}/figures/force_histogram.png"] + \
+        [f"results/{scene}/splits/{split}.json" for split in ("frame", "trial", "loto", "lopo")]
+
+
 def scene_targets(scenes):
-    targets = {"volume": VOLUME_TARGETS, "drift": DRIFT_TARGETS}
+    targets = {"volume": VOLUME_TARGETS, "drift": DRIFT_TARGETS,
+               "tool_normal": tool_targets("tool_normal"), "tool_shear": tool_targets("tool_shear")}
     missing = [s for s in scenes if s not in targets]
     if missing:
         raise WorkflowError(f"scenes {missing} are not built by this workflow yet (available: {sorted(targets)})")

@@ -5,7 +5,9 @@ the force interpolated at its time (dropped and counted where the force has a ga
 ``max_gap_s``), choose the zero-force reference frame of each finger, and decode the images once
 into memory-mappable arrays:
 
-    samples.parquet   one row per frame pair: trial, tool, pose, t_s, fx, fy, fz, fs
+    samples.parquet   one row per frame pair: trial, tool, pose, t_s, fx, fy, fz (sensor frame), and
+                      the two labels: normal (compressive force, normal_sign * fz) and shear
+                      (sqrt(fx² + fy²))
     frames.npy        (pairs, 2, S, S) uint8: current frame of each finger
     references.npy    (trials, 2, S, S) uint8: reference frame of each finger
     qc.json           per trial: frames, pairs, drops by reason, clock offset found, force range
@@ -93,15 +95,16 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
             for s in range(2):
                 frames[k:k + m, s] = np.stack([_decode(p, info["source"]) for p in trial["png"][s]])
             fx, fy, fz = trial["force"].T
-            fs = np.hypot(fx, fy)
-            label_mag = fz if kind == "normal" else fs
+            normal, shear = sync["normal_sign"] * fz, np.hypot(fx, fy)
+            label_mag = normal if kind == "normal" else shear
             ref_idx = reference_index(trial["t_ns"], np.abs(label_mag), sync["reference"], sync["contact_n"])
             refs[ti] = np.median(frames[k + ref_idx], axis=0).astype(np.uint8) if len(ref_idx) > 1 else frames[k + ref_idx[0]]
             t_s = (trial["t_ns"] - trial["t_ns"][0]) / 1e9
             rows.append(pd.DataFrame({
                 "trial_index": ti, "trial": info["trial"], "tool": info["tool"],
                 "orientation_deg": info["orientation_deg"], "insertion_mm": info["insertion_mm"],
-                "t_ns": trial["t_ns"], "t_s": t_s, "fx": fx, "fy": fy, "fz": fz, "fs": fs}))
+                "t_ns": trial["t_ns"], "t_s": t_s, "fx": fx, "fy": fy, "fz": fz,
+                "normal": normal, "shear": shear}))
             qc.append({"trial": info["trial"], "tool": info["tool"], "frames": info["frames"], "pairs": m,
                        "drops": dict(trial["drops"]), "clock": info["clock"],
                        "force_min_n": float(label_mag.min()), "force_max_n": float(label_mag.max()),

@@ -82,16 +82,17 @@ def rmse_vs_force(t: np.ndarray, rmse: np.ndarray, force: np.ndarray, label: str
         ax2.plot(t, rmse[:, k], color=color, lw=1.0, label=f"tactile RMSE, {name}")
     ax2.set_ylabel("tactile RMSE vs reference (grey levels)")
     lines = ax.get_legend_handles_labels()[0] + ax2.get_legend_handles_labels()[0]
-    ax.legend(lines, [l.get_label() for l in lines], loc="upper right")
-    ax.set_title(title)
+    ax.legend(lines, [l.get_label() for l in lines], loc="upper left", frameon=True, framealpha=0.9)
+    ax.set_title(title, fontsize=10)
     save_figure(out, fig)
     close(fig)
 
 
 def force_profiles(samples: pd.DataFrame, label: str, level_n: float, out: Path, max_curves: int = 8) -> None:
-    """The strongest press of one trial per (tool, pose), aligned at contact, with ``level_n`` marked."""
+    """The strongest press of one trial per (tool, pose), aligned at contact, with one force level
+    marked: ``level_n``, or lower where needed so that the line crosses every curve shown."""
     fig, ax = figure(6.0, 3.4)
-    shown = 0
+    shown, peaks = 0, []
     for (tool, pose), part in samples.groupby(["tool", "pose"], sort=True):
         trial = part["trial"].iloc[0]
         one = part[part["trial"] == trial]
@@ -99,14 +100,16 @@ def force_profiles(samples: pd.DataFrame, label: str, level_n: float, out: Path,
         ph = press_phases(t, f)
         sel = slice(max(0, ph["contact"] - 3), ph["restoration"] + 1)
         ax.plot(t[sel] - t[ph["contact"]], f[sel], lw=1.2, label=pose.replace("@", " @ "))
+        peaks.append(f[ph["peak"]])
         shown += 1
         if shown >= max_curves:
             break
+    level_n = min(level_n, 0.8 * min(peaks)) if peaks else level_n
     ax.axhline(level_n, color="grey", lw=1.5, alpha=0.7)
-    ax.annotate(f"{level_n:g} N", (ax.get_xlim()[1], level_n), ha="right", va="bottom", fontsize=8, color="grey")
+    ax.annotate(f"{level_n:.1f} N", (ax.get_xlim()[1], level_n), ha="right", va="bottom", fontsize=8, color="grey")
     ax.set_xlabel("time since contact (s)")
     ax.set_ylabel(f"{label} (N)")
-    ax.set_title("One press per tool and grasp pose")
+    ax.set_title("One loading cycle per tool and grasp pose: the same force, different imprints")
     ax.legend(fontsize=6.5, ncols=2)
     save_figure(out, fig)
     close(fig)

@@ -64,8 +64,12 @@ def open_public_trial(trial_dir: Path) -> RawTrial:
     data = read_public_trial(trial_dir, kind)
     n = len(data["force_n"])
     host_ns = (np.asarray(data["index"], np.int64) * (1e9 / PUBLIC_RATE_HZ)).astype(np.int64)
+    # the public labels are magnitudes; put them back in the Nano17 frame (a press reads Fz < 0)
     force = np.zeros((n, 3))
-    force[:, 2 if kind == "normal" else 0] = data["force_n"]   # the public labels are magnitudes
+    if kind == "normal":
+        force[:, 2] = -np.asarray(data["force_n"])
+    else:
+        force[:, 0] = data["force_n"]
     session_dir = trial_dir.parent.parent
     meta = _public_meta(session_dir).get(trial_dir.name, {"tool": "unknown", "orientation_deg": float("nan"),
                                                           "insertion_mm": float("nan")})

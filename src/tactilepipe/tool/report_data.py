@@ -23,7 +23,7 @@ def _format_of(source: Path) -> str:
 
 def qc_markdown(qc: dict, label: str) -> str:
     rows = ["| trial | tool | frames L/R | pairs | dropped (reason: count) | clock shift found (s) | xcorr | "
-            f"{label} range (N) |", "|---|---|---|---|---|---|---|---|"]
+            f"{label} force range (N) |", "|---|---|---|---|---|---|---|---|"]
     total_drops: dict[str, int] = {}
     for t in qc["trials"]:
         drops = {k: v for k, v in t["drops"].items() if v}
@@ -58,7 +58,7 @@ def build_data_report(data_dir: Path, out_dir: Path, label: str, level_n: float)
     rmse = np.stack([figures.tactile_rmse(frames[idx, s], refs[trial_index, s]) for s in range(2)], axis=1)
     name = one["trial"].iloc[0]
     figures.rmse_vs_force(one["t_s"].to_numpy(), rmse, one[label].to_numpy(), label,
-                          f"{name}: tactile change against the zero-force reference", figs / "rmse_vs_force.png")
+                          f"{name}: tactile change vs reference frame", figs / "rmse_vs_force.png")
     source = Path(qc["trials"][trial_index]["source"]) if "source" in qc["trials"][trial_index] else None
     if source is not None and source.exists():
         raw = open_trial(source, _format_of(source))

@@ -17,18 +17,23 @@ from tactilepipe.errors import InputError
 
 
 def _group_split(groups: pd.Series, fractions: tuple[float, float, float], rng) -> tuple[np.ndarray, ...]:
-    """Assign whole groups to train/val/test so each gets about its fraction of the rows."""
+    """Assign whole groups to train/val/test so each gets about its fraction of the rows.
+
+    Test and validation get one group each first (so few groups still fill every split), then
+    each group goes to the split furthest below its target share.
+    """
     sizes = groups.value_counts()
+    if len(sizes) < 3:
+        raise InputError("splits", f"need at least 3 trials for a train/validation/test split, found {len(sizes)}")
     order = rng.permutation(sizes.index.to_numpy())
-    total, targets = len(groups), np.cumsum(fractions[:2]) * len(groups)
-    assign, filled = {}, 0
-    for g in order:
-        assign[g] = 0 if filled < targets[0] else (1 if filled < targets[1] else 2)
-        filled += sizes[g]
+    assign = {order[0]: 2, order[1]: 1}
+    filled = np.array([0.0, sizes[order[1]], sizes[order[0]]])
+    target = np.asarray(fractions) * len(groups)
+    for g in order[2:]:
+        k = int(np.argmax((target - filled) / target))
+        assign[g] = k
+        filled[k] += sizes[g]
     part = groups.map(assign).to_numpy()
-    for k, name in enumerate(("train", "validation", "test")):
-        if not (part == k).any():
-            raise InputError("splits", f"too few groups ({len(sizes)}) to fill the {name} split")
     return tuple(np.flatnonzero(part == k) for k in range(3))
 
 

@@ -1,0 +1,111 @@
+"""Tool-scene data benchmarks, printed side by side in one run.
+
+1. Simulator: rendered QVGA frames/s on one core (target >= 200).
+2. Ingest frames/s (read PNG, grayscale, resize, re-encode, write the shard) against a bare
+   OpenCV decode + resize loop over the same frames (target >= 70 % of it).
+3. Training loader samples/s (memory-mapped decoded arrays) against a loader that decodes and
+   resizes the original JPEG frames for every sample, as the public code of study 000 does
+   (4 images per sample: both fingers, current and reference; target >= 10x).
+
+Usage: python benchmarks/bench_tool.py [--trials N] [--size 64]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from tactilepipe.config import load_params
+from tactilepipe.tool import simulate as tsim
+from tactilepipe.tool.dataset import build_tool_dataset
+from tactilepipe.tool.ingest import ingest_trial
+from tactilepipe.tool.loader import ToolFrames
+from tactilepipe.tool.native_import import read_native_trial
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def row(name: str, seconds: float, count: int, unit: str) -> float:
+    rate = count / seconds
+    print(f"{name:<58}{seconds:>9.2f}{rate:>12,.0f} {unit}")
+    return rate
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--trials", type=int, default=4)
+    ap.add_argument("--size", type=int, default=64)
+    ap.add_argument("--samples", type=int, default=2000)
+    args = ap.parse_args()
+    p = load_params(REPO / "params.yaml", {"scale": "default"})
+
+    print("\n== Simulator (one core)")
+    fps = tsim.benchmark_render(300)
+    print(f"rendered QVGA frames/s: {fps:,.0f}  (target >= 200: {'met' if fps >= 200 else 'NOT met'})")
+
+    with tempfile.TemporaryDirectory(prefix="tactilepipe-bench-tool-") as tmp:
+        session = Path(tmp) / "sim"
+        plan = [t for t in tsim.session_plan(p) if t.kind == "normal"][: args.trials]
+        tsim.write_session_calibration(session, p)
+        for spec in plan:
+            tsim.write_trial(session, spec, p)
+        trials = [session / spec.name for spec in plan]
+        pngs = sorted(f for t in trials for f in t.glob("digit_*/frame_*.png"))
+
+        print(f"\n== Ingest: {len(trials)} trials, {len(pngs)} frames -> {args.size} px, best of 2")
+        print(f"{'reader':<58}{'seconds':>9}{'rate':>12}")
+        best_bare = min(_timed(lambda: [cv2.resize(cv2.cvtColor(cv2.imread(str(f)), cv2.COLOR_BGR2GRAY),
+                                                   (args.size, args.size), interpolation=cv2.INTER_AREA)
+                                        for f in pngs]) for _ in range(2))
+        best_ours = min(_timed(lambda: [ingest_trial(read_native_trial(t), Path(tmp) / "shards" / f"{t.name}.parquet",
+                                                     args.size) for t in trials]) for _ in range(2))
+        bare = row("bare OpenCV loop (imread + gray + resize)", best_bare, len(pngs), "frames/s")
+        ours = row("tactilepipe ingest (+ clock sync, PNG encode, Parquet)", best_ours, len(pngs), "frames/s")
+        print(f"ingest / bare = {ours / bare:.0%}  (target >= 70 %: {'met' if ours >= 0.7 * bare else 'NOT met'})")
+
+        shards = sorted((Path(tmp) / "shards").glob("*.parquet"))
+        build_tool_dataset(shards, "normal", Path(tmp) / "data", p["tool_sync"])
+        data = ToolFrames(Path(tmp) / "data", "fz")
+        # the public code's layout: JPEG frames on disk, decoded and resized for every sample
+        jpg_dir = Path(tmp) / "jpg"
+        jpg_dir.mkdir()
+        jpgs = []
+        for k, f in enumerate(pngs):
+            out = jpg_dir / f"{k:06d}.jpg"
+            cv2.imwrite(str(out), cv2.imread(str(f)))
+            jpgs.append(out)
+        rng = np.random.default_rng(0)
+        n = min(args.samples, len(data))
+        idx = rng.permutation(len(data))[:n]
+        pick = rng.integers(0, len(jpgs), (n, 4))
+
+        def jpeg_loader():
+            for k in range(n):
+                imgs = [cv2.resize(cv2.cvtColor(cv2.imread(str(jpgs[j])), cv2.COLOR_BGR2GRAY), (args.size, args.size))
+                        for j in pick[k]]
+                np.stack(imgs).astype(np.float32) / 255.0
+
+        def our_loader():
+            for _ in data.batches(idx, 64, shuffle=True):
+                pass
+
+        print(f"\n== Training loader: {n} samples of 4 x {args.size} px, batch 64")
+        print(f"{'loader':<58}{'seconds':>9}{'rate':>12}")
+        jpeg = row("decode + resize 4 JPEGs per sample (public code)", _timed(jpeg_loader), n, "samples/s")
+        mine = row("tactilepipe ToolFrames (memory-mapped, decoded once)", _timed(our_loader), n, "samples/s")
+        print(f"ours / JPEG loader = {mine / jpeg:.1f}x  (target >= 10x: {'met' if mine >= 10 * jpeg else 'NOT met'})")
+
+
+def _timed(func) -> float:
+    t0 = time.perf_counter()
+    func()
+    return time.perf_counter() - t0
+
+
+if __name__ == "__main__":
+    main()
