@@ -118,6 +118,29 @@ def cmd_tool_split(args) -> None:
     write_json(args.out, split)
 
 
+def cmd_tool_train(args) -> None:
+    from tactilepipe.tool.run_model import train_and_predict
+    p = _params(args)
+    tp = p["tool_train"]
+    result = train_and_predict(args.scene, Path(args.data_dir), Path(args.split), Path(args.out_dir), args.variant,
+                               args.depth or tp["depth"], args.image_size or p["tool_ingest"]["image_size"],
+                               tp, p["seed"], progress=not args.quiet)
+    print(json.dumps({k: result[k] for k in ("variant", "depth", "image_size", "mae", "rmse", "r2", "train_s",
+                                             "latency_ms")}))
+
+
+def cmd_tool_report(args) -> None:
+    from tactilepipe.tool.report_models import build_model_report
+    p = _params(args)
+    build_model_report(Path(args.in_dir), args.scene, p["tool_train"]["variants"], args.sweep or [])
+
+
+def cmd_predict(args) -> None:
+    from tactilepipe.tool.predict import stream_predictions
+    p = _params(args)
+    stream_predictions(Path(args.checkpoint), Path(args.trial), args.format, p, limit=args.limit)
+
+
 def _session_lifts(p: dict, raw_root: Path, shard_root: Path):
     import pandas as pd
     from tactilepipe.volume.simulate import read_session_labels
@@ -253,6 +276,30 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--label", choices=["normal", "shear"], required=True)
     s.add_argument("--out", required=True)
     s.set_defaults(func=cmd_tool_split)
+
+    s = sub.add_parser("tool-train", parents=[common], help="train one tool-force model variant, predict its test set")
+    s.add_argument("--scene", choices=["tool_normal", "tool_shear"], required=True)
+    s.add_argument("--variant", choices=["full", "no_ref", "single", "no_gam"], required=True)
+    s.add_argument("--data-dir", required=True)
+    s.add_argument("--split", required=True, help="split file (results/<scene>/splits/<name>.json)")
+    s.add_argument("--out-dir", required=True)
+    s.add_argument("--depth", type=int, choices=[18, 34, 50, 101], help="ResNet depth (default: params)")
+    s.add_argument("--image-size", type=int, help="train on frames downscaled to this size (default: data size)")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    s.set_defaults(func=cmd_tool_train)
+
+    s = sub.add_parser("tool-report", parents=[common], help="metrics.json, tables and figures of the tool models")
+    s.add_argument("--scene", choices=["tool_normal", "tool_shear"], required=True)
+    s.add_argument("--in-dir", required=True)
+    s.add_argument("--sweep", nargs="*", help="extra runs (backbone/size) for the error-against-run-time plot")
+    s.set_defaults(func=cmd_tool_report)
+
+    s = sub.add_parser("predict", parents=[common], help="stream a recorded trial through a trained model")
+    s.add_argument("--checkpoint", required=True, help="e.g. results/tool_normal/models/full/best.pt")
+    s.add_argument("--trial", required=True, help="trial folder or bag")
+    s.add_argument("--format", choices=["native", "public", "ros"], default="native")
+    s.add_argument("--limit", type=int, help="stop after this many frame pairs")
+    s.set_defaults(func=cmd_predict)
 
     s = sub.add_parser("dataset", parents=[common], help="segment the off-table phase of every lift")
     s.add_argument("--raw-root", default="raw/volume")

@@ -4,6 +4,7 @@
 
 TOOL_TARGETS = {"tool_normal": ("normal", "normal"), "tool_shear": ("shear", "shear")}
 TOOL_SPLITS = ["frame", "trial", "loto", "lopo"]
+MODEL_FIGURES = ["sorted_predictions", "over_time", "per_tool", "window_heatmap", "regression", "error_vs_runtime"]
 
 
 rule simulate_tool:
@@ -92,3 +93,75 @@ rule tool_data_report:
         f"{LOGS}/{{scene}}/data_report.log",
     shell:
         "{CLI} report {wildcards.scene} {PARAMS_ARGS} --in-dir results/{wildcards.scene} 2> {log}"
+
+
+# --- models (issue: tool-force scene, part 2) --------------------------------------------------
+# Runs: each variant on the default split; "full_loto" (full model, leave-one-tool-out);
+# "full_d<depth>_s<size>" (full model, other backbone depth / input size, for error vs run time).
+
+
+def tool_runs():
+    tt = P["tool_train"]
+    runs = list(tt["variants"]) + (["full_loto"] if tt["loto"] else [])
+    return runs + [sweep_run_name(s) for s in tt["sweep"]]
+
+
+def sweep_run_name(s):
+    return f"full_d{s['depth']}_s{s['image_size']}"
+
+
+def run_spec(run):
+    """(variant, split, depth, image_size) of a run name."""
+    tt = P["tool_train"]
+    size = P["tool_ingest"]["image_size"]
+    if run == "full_loto":
+        return "full", "loto", tt["depth"], size
+    for s in tt["sweep"]:
+        if run == sweep_run_name(s):
+            return "full", tt["split"], s["depth"], s["image_size"]
+    return run, tt["split"], tt["depth"], size
+
+
+rule tool_train:
+    input:
+        data=rules.tool_dataset.output,
+        split=lambda w: f"results/{w.scene}/splits/{run_spec(w.run)[1]}.json",
+    output:
+        evaluation="results/{scene}/models/{run}/eval.json",
+        predictions="results/{scene}/models/{run}/predictions.parquet",
+        best="results/{scene}/models/{run}/best.pt",
+        history="results/{scene}/models/{run}/history.csv",
+    wildcard_constraints:
+        scene="tool_normal|tool_shear",
+        run="[a-z_0-9]+",
+    params:
+        spec=lambda w: run_spec(w.run),
+        train={k: v for k, v in P["tool_train"].items() if k not in ("variants", "sweep", "loto")},
+        seed=P["seed"],
+    threads: 2
+    log:
+        "results/logs/{scene}/train_{run}.log",
+    shell:
+        "{CLI} tool-train {PARAMS_ARGS} --scene {wildcards.scene} --variant {params.spec[0]} "
+        "--data-dir results/{wildcards.scene}/data --split {input.split} --depth {params.spec[2]} "
+        "--image-size {params.spec[3]} --out-dir results/{wildcards.scene}/models/{wildcards.run} --quiet 2> {log}"
+
+
+rule tool_model_report:
+    input:
+        runs=lambda w: expand("results/{scene}/models/{run}/{f}", scene=w.scene, run=tool_runs(),
+                              f=["eval.json", "predictions.parquet"]),
+        data=rules.tool_dataset.output,
+    output:
+        metrics="results/{scene}/metrics.json",
+        tables=expand("results/{{scene}}/tables/{t}.md", t=["variants", "per_tool", "per_window", "runtime"]),
+        figures=expand("results/{{scene}}/figures/{fig}.png", fig=MODEL_FIGURES),
+    wildcard_constraints:
+        scene="tool_normal|tool_shear",
+    params:
+        sweep=[sweep_run_name(s) for s in P["tool_train"]["sweep"]],
+    log:
+        "results/logs/{scene}/model_report.log",
+    shell:
+        "{CLI} tool-report {PARAMS_ARGS} --scene {wildcards.scene} --in-dir results/{wildcards.scene} "
+        "--sweep {params.sweep} 2> {log}"

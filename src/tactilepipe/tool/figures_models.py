@@ -1,0 +1,137 @@
+"""Figures of the tool-force models (study 000, Figs. 5-10) and the error-against-run-time plot.
+
+Each takes plain tables (predictions with columns true, pred, tool, trial, t_s; metrics dicts),
+so a newcomer finds every model figure here.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from tactilepipe.atomic import save_figure
+from tactilepipe.plotting import close, figure
+
+VARIANT_COLORS = {"full": "#C44E52", "no_gam": "#8172B2", "no_ref": "#64B5CD", "single": "#1f3d7a"}
+VARIANT_LABELS = {"full": "full model", "no_gam": "no attention (GAM)", "no_ref": "no reference frame",
+                  "single": "single sensor"}
+
+
+def sorted_predictions(pred: pd.DataFrame, label: str, out: Path) -> None:
+    """Fig. 5: test predictions and ground truth, sorted by the true force."""
+    order = np.argsort(pred["true"].to_numpy(), kind="stable")
+    fig, ax = figure(6.0, 3.2)
+    ax.plot(pred["pred"].to_numpy()[order], ".", ms=2, alpha=0.5, color="#4C72B0", label="prediction")
+    ax.plot(pred["true"].to_numpy()[order], "-", lw=1.5, color="k", label="ground truth (Nano17)")
+    ax.set_xlabel("test frame pairs, sorted by true force")
+    ax.set_ylabel(f"{label} force (N)")
+    ax.set_title("Full model on the test set")
+    ax.legend(loc="upper left")
+    save_figure(out, fig)
+    close(fig)
+
+
+def over_time(preds: dict[str, pd.DataFrame], label: str, out: Path, n_presses: int = 4) -> None:
+    """Fig. 6: predictions over time for several presses of one test trial, per variant."""
+    first = next(iter(preds.values()))
+    trial = first.groupby("trial")["true"].max().idxmax()
+    fig, ax = figure(7.0, 3.2)
+    ref = first[first["trial"] == trial].sort_values("t_s")
+    ax.plot(ref["t_s"], ref["true"], color="k", lw=1.8, label="ground truth")
+    for variant in ("single", "no_ref", "full"):
+        if variant in preds:
+            part = preds[variant][preds[variant]["trial"] == trial].sort_values("t_s")
+            ax.plot(part["t_s"], part["pred"], lw=1.1, color=VARIANT_COLORS[variant], label=VARIANT_LABELS[variant])
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel(f"{label} force (N)")
+    ax.set_title(f"Predictions over time: {trial}")
+    ax.legend(ncols=2, loc="upper right")
+    save_figure(out, fig)
+    close(fig)
+
+
+def per_tool_bars(per_tool: dict[str, pd.DataFrame], out: Path) -> None:
+    """Fig. 7: mean |error| per tool with its std, one bar per variant."""
+    variants = list(per_tool)
+    tools = sorted(set().union(*(set(t["tool"]) for t in per_tool.values())))
+    width = 0.8 / len(variants)
+    fig, ax = figure(6.0, 3.4)
+    for k, v in enumerate(variants):
+        t = per_tool[v].set_index("tool").reindex(tools)
+        ax.bar(np.arange(len(tools)) + (k - (len(variants) - 1) / 2) * width, t["mae"], width,
+               yerr=t["std_abs_error"], capsize=2, color=VARIANT_COLORS.get(v), label=VARIANT_LABELS.get(v, v))
+    ax.set_xticks(range(len(tools)), [t.replace("_", " ") for t in tools])
+    ax.set_ylabel("|error| (N), mean ± std")
+    ax.set_title("Error per tool")
+    ax.legend(fontsize=7)
+    save_figure(out, fig)
+    close(fig)
+
+
+def window_heatmap(per_window: dict[str, pd.DataFrame], out: Path) -> None:
+    """Fig. 8: MAE per force window (columns) and variant (rows), with the frame counts."""
+    variants = list(per_window)
+    windows = list(per_window[variants[0]]["window"].astype(str))
+    grid = np.array([per_window[v].set_index(per_window[v]["window"].astype(str))["mae"].reindex(windows).to_numpy()
+                     for v in variants], float)
+    counts = per_window[variants[0]]["n"].to_numpy()
+    fig, ax = figure(7.0, 0.6 * len(variants) + 1.6)
+    im = ax.imshow(grid, cmap="Reds", aspect="auto")
+    ax.grid(False)
+    for i in range(grid.shape[0]):
+        for j in range(grid.shape[1]):
+            if np.isfinite(grid[i, j]):
+                ax.text(j, i, f"{grid[i, j]:.2f}", ha="center", va="center", fontsize=8,
+                        color="white" if grid[i, j] > np.nanmax(grid) * 0.6 else "black")
+    ax.set_xticks(range(len(windows)), [f"{w}\nn={c}" for w, c in zip(windows, counts)], fontsize=7)
+    ax.set_yticks(range(len(variants)), [VARIANT_LABELS.get(v, v) for v in variants])
+    fig.colorbar(im, ax=ax, label="MAE (N)")
+    ax.set_title("Error per force window (test set)")
+    save_figure(out, fig)
+    close(fig)
+
+
+def regression_grid(preds: dict[str, pd.DataFrame], metrics: dict[str, dict], label: str, out: Path) -> None:
+    """Fig. 9/10: predicted against true force per variant, with R², MAE and the fitted line."""
+    variants = list(preds)
+    cols = 2 if len(variants) > 1 else 1
+    rows = int(np.ceil(len(variants) / cols))
+    fig, axes = figure(3.2 * cols, 3.0 * rows, nrows=rows, ncols=cols, squeeze=False)
+    hi = max(max(p["true"].max(), p["pred"].max()) for p in preds.values())
+    for ax, v in zip(axes.flat, variants):
+        p, m = preds[v], metrics[v]
+        ax.plot(p["true"], p["pred"], ".", ms=2, alpha=0.35, color=VARIANT_COLORS.get(v, "#4C72B0"))
+        ax.plot([0, hi], [0, hi], "k--", lw=0.8)
+        xs = np.array([0, hi])
+        ax.plot(xs, m["slope"] * xs + m["intercept"], color="k", lw=1.0)
+        ax.set_title(f"{VARIANT_LABELS.get(v, v)}\nR² {m['r2']:.4f}, MAE {m['mae']:.3f} N", fontsize=9)
+        ax.set_xlabel(f"true {label} (N)")
+        ax.set_ylabel(f"predicted {label} (N)")
+        ax.set_xlim(-0.5, hi + 0.5)
+        ax.set_ylim(-0.5, hi + 0.5)
+    for ax in list(axes.flat)[len(variants):]:
+        ax.remove()
+    save_figure(out, fig)
+    close(fig)
+
+
+def pareto(runs: pd.DataFrame, out: Path) -> None:
+    """Error against run time: MAE vs training time and vs inference latency for every model trained."""
+    fig, axes = figure(8.0, 3.2, ncols=2)
+    for ax, col, xlabel in ((axes[0], "train_s", "training wall time (s, 2 CPU cores)"),
+                            (axes[1], "latency_ms", "inference latency per frame pair (ms, batch 1)")):
+        for row in runs.itertuples():
+            ax.plot(getattr(row, col), row.mae, "o", color=VARIANT_COLORS.get(row.variant, "#4C72B0"))
+            ax.annotate(row.name_, (getattr(row, col), row.mae), fontsize=7, xytext=(3, 3), textcoords="offset points")
+        pts = runs.sort_values(col)
+        front = pts[pts["mae"] <= pts["mae"].cummin()]
+        ax.step(front[col], front["mae"], where="post", color="grey", lw=1, ls="--", label="Pareto front")
+        ax.set_xscale("log")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel("test MAE (N)")
+        ax.legend(fontsize=7)
+    fig.suptitle("Error against run time")
+    save_figure(out, fig)
+    close(fig)

@@ -1,0 +1,45 @@
+"""Train one model variant on one split, predict its test set, and time it (one CLI stage)."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from tactilepipe.atomic import write_json, write_parquet
+from tactilepipe.tool.evaluate import evaluate
+from tactilepipe.tool.loader import ToolFrames
+
+LABELS = {"tool_normal": ("normal", "minmax"), "tool_shear": ("shear", "zscore")}
+
+
+def train_and_predict(scene: str, data_dir: Path, split_path: Path, out_dir: Path, variant: str, depth: int,
+                      image_size: int, tp: dict, seed: int, progress: bool = True) -> dict:
+    from tactilepipe.tool.train import TrainConfig, latency_ms, load_model, predict, train
+    label, normalise = LABELS[scene]
+    data = ToolFrames(data_dir, label)
+    split = json.loads(Path(split_path).read_text())
+    cfg = TrainConfig(variant=variant, depth=depth, image_size=image_size, lr=tp["lr"], batch_size=tp["batch_size"],
+                      max_epochs=tp["max_epochs"], patience=tp["patience"], seed=seed, device=tp["device"],
+                      amp=tp["amp"], num_threads=tp["num_threads"], normalise=normalise,
+                      max_train_batches_per_epoch=tp["max_train_batches_per_epoch"] or None)
+    summary = train(data, split, cfg, out_dir, progress=progress)
+    model, _ = load_model(out_dir / "best.pt")
+    test = np.asarray(split["test"])
+    t0 = time.perf_counter()
+    pred = predict(model, data, test, split["label_stats"], normalise)
+    predict_s = time.perf_counter() - t0
+    s = data.samples.iloc[test]
+    table = pd.DataFrame({"index": test, "trial": s["trial"].to_numpy(), "tool": s["tool"].to_numpy(),
+                          "pose": s["pose"].to_numpy(), "t_s": s["t_s"].to_numpy(),
+                          "true": data.labels[test].astype(float), "pred": pred.astype(float)})
+    write_parquet(out_dir / "predictions.parquet", table)
+    result = {**evaluate(table), "variant": variant, "depth": depth, "image_size": image_size,
+              "split": split["name"], "train_s": summary["train_s"], "epochs": summary["epochs"],
+              "best_epoch": summary["best_epoch"], "parameters": summary["parameters"],
+              "latency_ms": latency_ms(model, image_size), "predict_s": predict_s, "device": summary["device"]}
+    write_json(out_dir / "eval.json", result)
+    return result
