@@ -24,8 +24,9 @@ smoke: $(STAMP)  ## the whole pipeline at the smoke scale (about a minute)
 test: $(STAMP)  ## the whole test suite (unit + smoke-scale integration through real Snakemake)
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest
 
-bench: $(STAMP)  ## benchmarks: ingest vs bare rosbags read, and the default-scale volume scene
+bench: $(STAMP)  ## benchmarks, each printing ours next to the reference loop and the target
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_volume.py
+	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_tool.py
 
 clean-results:  ## remove generated results (raw recordings stay)
 	rm -rf results/volume results/drift results/logs
