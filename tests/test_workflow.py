@@ -134,3 +134,18 @@ def test_dvc_repro_reproduces_the_results(tmp_path: Path):
     lock = yaml.safe_load((wd / "dvc.lock").read_text())
     assert set(lock["stages"]) == {"simulate_volume", "simulate_drift", "volume", "drift", "simulate_tool", "tool_data"}
     assert "mlp" in lock["stages"]["volume"]["params"]["params.yaml"]
+
+
+def test_a_tool_model_trains_and_predicts_through_snakemake(smoke_run: Path):
+    target = "results/tool_normal/models/full/eval.json"
+    snakemake(smoke_run, "--config", "scale=smoke", "--", target)
+    e = json.loads((smoke_run / target).read_text())
+    assert e["variant"] == "full" and e["split"] == "trial"
+    assert e["n"] > 0 and e["latency_ms"] > 0 and e["parameters"] > 1e6
+    assert {"mae", "rmse", "r2", "slope", "intercept", "per_tool", "per_window"} <= set(e)
+    assert sum(w["n"] for w in e["per_window"]) == e["n"]        # every test pair counted once
+    proc = run([str(BIN / "tactilepipe"), "predict", "--scale", "smoke", "--checkpoint",
+                str(smoke_run / "results/tool_normal/models/full/best.pt"), "--trial",
+                str(smoke_run / "raw/tool/sim-smoke/screwdriver_1_p00_normal00"), "--limit", "5"], smoke_run)
+    lines = proc.stdout.strip().splitlines()
+    assert lines[0] == "pair,t_s,prediction_n,latency_ms" and len(lines) == 7 and "pairs/s" in lines[-1]

@@ -27,6 +27,19 @@ class ToolFrames:
     def __len__(self) -> int:
         return len(self.samples)
 
+    def resized(self, size: int) -> "ToolFrames":
+        """The same samples with every image area-downscaled to size x size (held in memory), for
+        models trained on smaller inputs than the dataset was built with."""
+        import copy
+        import cv2
+        if size == self.frames.shape[-1]:
+            return self
+        shrink = lambda a: np.stack([cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
+                                     for img in a.reshape(-1, *a.shape[-2:])]).reshape(*a.shape[:-2], size, size)
+        view = copy.copy(self)
+        view.frames, view.references = shrink(np.asarray(self.frames)), shrink(np.asarray(self.references))
+        return view
+
     def arrays(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Inputs (n, 4, S, S) uint8 and labels (n,) for sample indices ``idx``."""
         idx = np.asarray(idx)

@@ -22,13 +22,14 @@ Input sizes: the encoder halves the image three times (S/8); the ResNet stem div
 its stages by 8 more, every stride-2 step rounding up, and the global pool is adaptive. So any
 S >= MIN_IMAGE_SIZE (8: the encoder's third pool needs a 2x2 map) runs; below it build_model and
 forward raise ValueError. Even at 224 px the published design reaches 1x1 in the last ResNet
-stage (28 / 32); at 64 px the maps are 1x1 from the third stage on, at 32 px from the first.
+stage (28 / 32); at 64 px the maps are 1x1 from the second stage on, at 32 px from the first.
 With 1x1 maps, BatchNorm in training mode needs at least 2 samples per batch (the trainer skips
 a trailing batch of one sample).
 """
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
 
 import torch
@@ -210,7 +211,7 @@ def _kaiming_init(model: nn.Module) -> None:
 
 
 def check_image_size(image_size: int) -> None:
-    if not isinstance(image_size, int) or image_size < MIN_IMAGE_SIZE:
+    if isinstance(image_size, bool) or not isinstance(image_size, numbers.Integral) or image_size < MIN_IMAGE_SIZE:
         raise ValueError(f"image_size {image_size!r} is too small: the model needs at least {MIN_IMAGE_SIZE} px "
                          f"(the encoder divides by 8)")
 
@@ -223,7 +224,7 @@ def build_model(variant: str, depth: int, image_size: int) -> ToolForceNet:
     if depth not in DEPTHS:
         raise ValueError(f"unsupported ResNet depth {depth} (one of {', '.join(map(str, DEPTHS))})")
     check_image_size(image_size)
-    return ToolForceNet(variant, depth, image_size)
+    return ToolForceNet(variant, depth, int(image_size))
 
 
 def count_parameters(model: nn.Module, trainable_only: bool = False) -> int:

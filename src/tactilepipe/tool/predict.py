@@ -18,19 +18,13 @@ from tactilepipe.tool.ingest import preprocess
 from tactilepipe.tool.sync import pair_frames
 
 
-def denormalise(y: np.ndarray, stats: dict, normalise: str) -> np.ndarray:
-    if normalise == "minmax":
-        return y * (stats["max"] - stats["min"]) + stats["min"]
-    return y * stats["std"] + stats["mean"]
-
-
 def stream_predictions(checkpoint: Path, trial: Path, fmt: str, p: dict, limit: int | None = None,
                        out=sys.stdout) -> dict:
     import torch
-    from tactilepipe.tool.train import load_model
+    from tactilepipe.tool.train import denormalise, load_model
     model, meta = load_model(checkpoint)
     model.eval()
-    size, data_size = meta["image_size"], meta.get("data_image_size", meta["image_size"])
+    size = meta["image_size"]
     raw = open_trial(trial, fmt, p["tool_ingest"]["ros_topics"])
     left, right = raw.frames["digit_left"], raw.frames["digit_right"]
     period = float(np.median(np.diff(left.host_ns))) if len(left) > 1 else 1e9 / 30
@@ -39,8 +33,7 @@ def stream_predictions(checkpoint: Path, trial: Path, fmt: str, p: dict, limit: 
         il, ir = il[:limit], ir[:limit]
 
     def prep(frames, i):
-        img = preprocess(frames.load(int(i)), data_size)
-        return img if size == data_size else preprocess_small(img, size)
+        return preprocess(frames.load(int(i)), size)
 
     ref = [prep(left, il[0]), prep(right, ir[0])]
     latencies, preds = [], []
@@ -51,7 +44,7 @@ def stream_predictions(checkpoint: Path, trial: Path, fmt: str, p: dict, limit: 
             t0 = time.perf_counter()
             x = np.stack([prep(left, i), ref[0], prep(right, j), ref[1]])[None].astype(np.float32) / 255.0
             y = model(torch.from_numpy(x)).reshape(-1).numpy()
-            pred = float(denormalise(y, meta["label_stats"], meta["normalise"])[0])
+            pred = float(np.asarray(denormalise(y, meta["label_stats"], meta["normalise"])).reshape(-1)[0])
             latencies.append((time.perf_counter() - t0) * 1000)
             preds.append(pred)
             t_s = (left.host_ns[i] - left.host_ns[il[0]]) / 1e9
@@ -63,7 +56,3 @@ def stream_predictions(checkpoint: Path, trial: Path, fmt: str, p: dict, limit: 
           f"sustained {summary['sustained_pairs_per_s']:.1f} pairs/s (decode + preprocess + model)", file=out)
     return summary
 
-
-def preprocess_small(gray: np.ndarray, size: int) -> np.ndarray:
-    import cv2
-    return cv2.resize(gray, (size, size), interpolation=cv2.INTER_AREA)

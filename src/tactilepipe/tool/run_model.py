@@ -20,12 +20,16 @@ def train_and_predict(scene: str, data_dir: Path, split_path: Path, out_dir: Pat
                       image_size: int, tp: dict, seed: int, progress: bool = True) -> dict:
     from tactilepipe.tool.train import TrainConfig, latency_ms, load_model, predict, train
     label, normalise = LABELS[scene]
-    data = ToolFrames(data_dir, label)
+    data = ToolFrames(data_dir, label).resized(image_size)
     split = json.loads(Path(split_path).read_text())
     cfg = TrainConfig(variant=variant, depth=depth, image_size=image_size, lr=tp["lr"], batch_size=tp["batch_size"],
                       max_epochs=tp["max_epochs"], patience=tp["patience"], seed=seed, device=tp["device"],
                       amp=tp["amp"], num_threads=tp["num_threads"], normalise=normalise,
                       max_train_batches_per_epoch=tp["max_train_batches_per_epoch"] or None)
+    if (out_dir / "last.pt").exists() and not (out_dir / "best.pt").exists():
+        # a failed job's declared outputs (best.pt) were removed but its last.pt was not:
+        # the pair no longer describes one run, so start that run again
+        (out_dir / "last.pt").unlink()
     summary = train(data, split, cfg, out_dir, progress=progress)
     model, _ = load_model(out_dir / "best.pt")
     test = np.asarray(split["test"])
@@ -38,8 +42,8 @@ def train_and_predict(scene: str, data_dir: Path, split_path: Path, out_dir: Pat
                           "true": data.labels[test].astype(float), "pred": pred.astype(float)})
     write_parquet(out_dir / "predictions.parquet", table)
     result = {**evaluate(table), "variant": variant, "depth": depth, "image_size": image_size,
-              "split": split["name"], "train_s": summary["train_s"], "epochs": summary["epochs"],
+              "split": split["name"], "train_s": summary["train_wall_s"], "epochs": summary["epochs_run"],
               "best_epoch": summary["best_epoch"], "parameters": summary["parameters"],
-              "latency_ms": latency_ms(model, image_size), "predict_s": predict_s, "device": summary["device"]}
+              "latency_ms": latency_ms(model, image_size, n=20), "predict_s": predict_s, "device": summary["device"]}
     write_json(out_dir / "eval.json", result)
     return result

@@ -1,0 +1,410 @@
+"""Trainer of the tool-force model (paper section IV-C, REFERENCE.md §2), as library code.
+
+Adam (lr 2e-4), L1 loss on normalised labels (min-max for the normal force, z-score for shear:
+``TrainConfig.normalise``; the statistics are the split's ``label_stats``, taken from the
+training split only), batch 64, early stopping on the validation loss. Unlike the public code it is
+seeded and deterministic on CPU, validates on whole splits (per-sample means, not means over
+batches), checkpoints every epoch and resumes an interrupted run to the same result.
+
+Files written into ``out_dir`` (each atomically):
+
+    history.csv   one row per epoch: epoch, train_loss, val_loss (normalised L1), val_mae_n (N),
+                  lr, epoch_s (training + validation), wall_s (sum of epoch_s, over resumes too)
+    last.pt       model, optimiser, epoch, best validation loss, RNG states, history, config
+    best.pt       model of the epoch with the lowest validation loss, with its metadata
+
+Epochs and batches are numbered from 1 in the history and in error messages.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import math
+import sys
+import time
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from tactilepipe.atomic import atomic_path
+from tactilepipe.errors import ConfigError, InputError, TactilepipeError
+from tactilepipe.tool.model import build_model, count_parameters
+
+CHECKPOINT_FORMAT = "tactilepipe.tool.train/1"
+HISTORY_COLUMNS = ["epoch", "train_loss", "val_loss", "val_mae_n", "lr", "epoch_s", "wall_s"]
+# Config fields a resumed run may change; every other field must match the checkpoint.
+RESUMABLE_CHANGES = {"max_epochs", "patience", "device", "amp", "num_threads"}
+
+
+@dataclass
+class TrainConfig:
+    variant: str = "full"               # key of model.VARIANTS
+    depth: int = 101                    # ResNet depth: 18, 34, 50, 101
+    image_size: int = 224               # S of the (b, 4, S, S) inputs (must match the dataset)
+    lr: float = 2e-4                    # Adam
+    batch_size: int = 64
+    max_epochs: int = 300
+    patience: int | None = 40           # epochs without a lower validation loss before stopping (None/0: never)
+    normalise: str = "minmax"           # minmax (normal force) | zscore (shear force)
+    seed: int = 0                       # model init, dropout and the per-epoch shuffle
+    device: str = "auto"                # auto (CUDA when available, else CPU) | cpu | cuda | cuda:N
+    amp: bool = True                    # mixed precision, on CUDA only (ignored on CPU)
+    num_threads: int | None = None      # torch CPU threads while training (None: leave as is)
+    max_train_batches_per_epoch: int | None = None   # cap for smoke runs (None: every batch)
+    channels_last: bool = True          # NHWC memory format (faster on CPU)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "TrainConfig":
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - names)
+        if unknown:
+            raise ConfigError(f"unknown training settings {unknown} (known: {sorted(names)})")
+        return cls(**d)
+
+
+# ----------------------------------------------------------------------------- label scaling
+
+def normalise(y, stats: dict, mode: str):
+    """Labels in N -> the scale the model is trained on."""
+    if mode == "minmax":
+        span = (stats["max"] - stats["min"]) or 1.0
+        return (y - stats["min"]) / span
+    if mode == "zscore":
+        return (y - stats["mean"]) / (stats["std"] or 1.0)
+    raise TactilepipeError(f"unknown label normalisation '{mode}' (minmax or zscore)")
+
+
+def denormalise(z, stats: dict, mode: str):
+    """Model outputs -> N (inverse of ``normalise``)."""
+    if mode == "minmax":
+        return z * ((stats["max"] - stats["min"]) or 1.0) + stats["min"]
+    if mode == "zscore":
+        return z * (stats["std"] or 1.0) + stats["mean"]
+    raise TactilepipeError(f"unknown label normalisation '{mode}' (minmax or zscore)")
+
+
+# ----------------------------------------------------------------------------- helpers
+
+def resolve_device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    dev = torch.device(name)
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        raise TactilepipeError(f"device '{name}' requested but CUDA is not available")
+    return dev
+
+
+def _uses_channels_last(model: nn.Module) -> bool:
+    # a conv weight whose strides tell the two formats apart (not 1 input channel or a 1x1 kernel)
+    w = next((p for p in model.parameters() if p.ndim == 4 and p.shape[1] > 1 and p.shape[2] > 1), None)
+    return w is not None and w.is_contiguous(memory_format=torch.channels_last) and not w.is_contiguous()
+
+
+def _to_input(x: torch.Tensor, device: torch.device, channels_last: bool) -> torch.Tensor:
+    x = x.to(device, non_blocking=True)
+    return x.contiguous(memory_format=torch.channels_last) if channels_last else x
+
+
+def _epoch_seed(seed: int, epoch: int) -> int:
+    return int(np.random.SeedSequence([seed, epoch]).generate_state(1)[0])
+
+
+def _fingerprint(split: dict) -> str:
+    key = {"train": [int(i) for i in split["train"]], "validation": [int(i) for i in split["validation"]],
+           "label_stats": split["label_stats"]}
+    return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def _save(obj: dict, path: Path) -> None:
+    with atomic_path(path) as tmp:
+        torch.save(obj, tmp)
+
+
+def _write_history(path: Path, history: list[dict]) -> None:
+    with atomic_path(path) as tmp:
+        with open(tmp, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=HISTORY_COLUMNS)
+            w.writeheader()
+            w.writerows(history)
+
+
+def _load_checkpoint(path: Path) -> dict:
+    try:
+        ckpt = torch.load(path, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise InputError(path, "checkpoint not found") from None
+    except Exception as exc:                      # truncated or foreign file
+        raise InputError(path, f"cannot read checkpoint ({type(exc).__name__}: {exc})") from None
+    if not isinstance(ckpt, dict) or ckpt.get("format") != CHECKPOINT_FORMAT:
+        raise InputError(path, f"not a tool-model checkpoint (expected format {CHECKPOINT_FORMAT})")
+    return ckpt
+
+
+def _check_data(data, split: dict, cfg: TrainConfig) -> tuple[np.ndarray, np.ndarray]:
+    train_idx, val_idx = np.asarray(split["train"], int), np.asarray(split["validation"], int)
+    if len(train_idx) < 2 or len(val_idx) < 1:
+        raise TactilepipeError(f"split '{split.get('name', '?')}' has {len(train_idx)} training and "
+                               f"{len(val_idx)} validation samples: need at least 2 and 1")
+    if cfg.batch_size < 2:
+        raise TactilepipeError(f"batch_size {cfg.batch_size}: BatchNorm needs at least 2 samples per batch")
+    n = len(data)
+    if max(train_idx.max(), val_idx.max()) >= n or min(train_idx.min(), val_idx.min()) < 0:
+        raise TactilepipeError(f"split indices out of range for a dataset of {n} samples")
+    frames = getattr(data, "frames", None)
+    if frames is not None and tuple(frames.shape[-2:]) != (cfg.image_size, cfg.image_size):
+        raise TactilepipeError(f"dataset frames are {tuple(frames.shape[-2:])} px but the model is configured "
+                               f"for image_size {cfg.image_size}")
+    normalise(0.0, split["label_stats"], cfg.normalise)   # validates the mode
+    return train_idx, val_idx
+
+
+def _summary(state: dict, meta: dict, device: torch.device, resumed_from: int) -> dict:
+    hist = state["history"]
+    best = next((h for h in hist if h["epoch"] == state["best_epoch"]), None)
+    return {"epochs_run": len(hist), "best_epoch": state["best_epoch"],
+            "best_val_loss": state["best_val_loss"],
+            "best_val_mae_n": best["val_mae_n"] if best else float("nan"),
+            "train_wall_s": hist[-1]["wall_s"] if hist else 0.0,
+            "early_stopped": state["early_stopped"], "resumed_from_epoch": resumed_from,
+            "parameters": meta["parameters"], "device": str(device),
+            "variant": meta["variant"], "depth": meta["depth"], "image_size": meta["image_size"]}
+
+
+# ----------------------------------------------------------------------------- training
+
+def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bool = True) -> dict:
+    """Train (or resume from ``out_dir/last.pt``) and return a summary dict.
+
+    ``data`` is a ``ToolFrames`` (or anything with its ``batches``/``__len__``), ``split`` a split
+    dict of ``tool.splits.make_split``. On CPU the run is deterministic for a given seed and thread
+    count; a run resumed after an interruption ends with the same weights as an uninterrupted one.
+    """
+    from tqdm import tqdm
+
+    out_dir = Path(out_dir)
+    train_idx, val_idx = _check_data(data, split, cfg)
+    device = resolve_device(cfg.device)
+    use_amp = bool(cfg.amp) and device.type == "cuda"
+    stats = split["label_stats"]
+    meta = {"variant": cfg.variant, "depth": cfg.depth, "image_size": cfg.image_size,
+            "normalise": cfg.normalise, "label_stats": dict(stats), "label": split.get("label"),
+            "split": split.get("name"), "split_fingerprint": _fingerprint(split)}
+
+    saved = (torch.get_num_threads(), torch.are_deterministic_algorithms_enabled(),
+             torch.is_deterministic_algorithms_warn_only_enabled())
+    try:
+        if cfg.num_threads:
+            torch.set_num_threads(int(cfg.num_threads))
+        torch.use_deterministic_algorithms(True, warn_only=device.type != "cpu")
+        torch.manual_seed(cfg.seed)
+        model = build_model(cfg.variant, cfg.depth, cfg.image_size).to(device)
+        if cfg.channels_last:
+            model = model.to(memory_format=torch.channels_last)
+        meta["parameters"] = count_parameters(model)
+        opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+        scaler = torch.amp.GradScaler("cuda", enabled=use_amp)
+        state = {"epoch": 0, "best_val_loss": math.inf, "best_epoch": 0, "bad_epochs": 0,
+                 "early_stopped": False, "history": []}
+
+        last_path, best_path = out_dir / "last.pt", out_dir / "best.pt"
+        resumed_from = 0
+        if last_path.exists():
+            ckpt = _load_checkpoint(last_path)
+            old = ckpt["config"]
+            diff = {k: (old.get(k), v) for k, v in asdict(cfg).items()
+                    if k not in RESUMABLE_CHANGES and old.get(k) != v}
+            if ckpt["meta"]["split_fingerprint"] != meta["split_fingerprint"]:
+                diff["split"] = ("another split", "this split")
+            if diff:
+                raise TactilepipeError(f"{last_path}: made with different settings {diff}; "
+                                       f"delete it or train into another directory")
+            model.load_state_dict(ckpt["model"])
+            opt.load_state_dict(ckpt["optimizer"])
+            scaler.load_state_dict(ckpt["scaler"])
+            state = {k: ckpt[k] for k in state}
+            torch.set_rng_state(ckpt["rng"]["torch"])
+            if device.type == "cuda" and ckpt["rng"].get("cuda"):
+                torch.cuda.set_rng_state_all(ckpt["rng"]["cuda"])
+            resumed_from = state["epoch"]
+            _write_history(out_dir / "history.csv", state["history"])
+
+        n_batches = math.ceil(len(train_idx) / cfg.batch_size)
+        if cfg.max_train_batches_per_epoch:
+            n_batches = min(n_batches, int(cfg.max_train_batches_per_epoch))
+        for epoch in range(state["epoch"] + 1, cfg.max_epochs + 1):
+            if state["early_stopped"]:
+                break
+            t0 = time.perf_counter()
+            model.train()
+            total, count = 0.0, 0
+            bar = tqdm(total=n_batches, desc=f"epoch {epoch}/{cfg.max_epochs}", unit="batch",
+                       file=sys.stderr, disable=not progress, leave=False)
+            batches = data.batches(train_idx, cfg.batch_size, shuffle=True, seed=_epoch_seed(cfg.seed, epoch))
+            for b, (x, y, part) in enumerate(batches, start=1):
+                if b > n_batches:
+                    break
+                if len(y) < 2:            # BatchNorm on 1x1 maps cannot train on a single sample
+                    bar.update(1)
+                    continue
+                x = _to_input(x, device, cfg.channels_last)
+                target = normalise(y.to(device), stats, cfg.normalise)
+                with torch.autocast(device.type, enabled=use_amp):
+                    pred = model(x)
+                loss = nn.functional.l1_loss(pred.float(), target)
+                value = loss.item()
+                if not math.isfinite(value):
+                    raise TactilepipeError(_bad_loss("training", value, epoch, b, y, part))
+                opt.zero_grad(set_to_none=True)
+                scaler.scale(loss).backward()
+                scaler.step(opt)
+                scaler.update()
+                total += value * len(y)
+                count += len(y)
+                bar.set_postfix(loss=f"{value:.4f}", refresh=False)
+                bar.update(1)
+            bar.close()
+            train_loss = total / max(count, 1)
+            val_loss, val_mae = _validate(model, data, val_idx, cfg, stats, device, use_amp, epoch)
+            epoch_s = time.perf_counter() - t0
+            prev_wall = state["history"][-1]["wall_s"] if state["history"] else 0.0
+            state["history"].append({"epoch": epoch, "train_loss": train_loss, "val_loss": val_loss,
+                                     "val_mae_n": val_mae, "lr": opt.param_groups[0]["lr"],
+                                     "epoch_s": epoch_s, "wall_s": prev_wall + epoch_s})
+            state["epoch"] = epoch
+            if val_loss < state["best_val_loss"]:
+                state.update(best_val_loss=val_loss, best_epoch=epoch, bad_epochs=0)
+                _save({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "config": asdict(cfg),
+                       "meta": {**meta, "epoch": epoch, "val_loss": val_loss, "val_mae_n": val_mae}}, best_path)
+            else:
+                state["bad_epochs"] += 1
+            if cfg.patience and state["bad_epochs"] >= cfg.patience:
+                state["early_stopped"] = True
+            rng = {"torch": torch.get_rng_state(),
+                   "cuda": torch.cuda.get_rng_state_all() if device.type == "cuda" else []}
+            _save({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "optimizer": opt.state_dict(),
+                   "scaler": scaler.state_dict(), "rng": rng, "config": asdict(cfg),
+                   "meta": {**meta, "epoch": epoch, "val_loss": val_loss, "val_mae_n": val_mae}, **state}, last_path)
+            _write_history(out_dir / "history.csv", state["history"])
+            if progress:
+                tqdm.write(f"epoch {epoch}: train {train_loss:.4f}  val {val_loss:.4f}  val MAE {val_mae:.3f} N  "
+                           f"({epoch_s:.1f} s)", file=sys.stderr)
+        return _summary(state, meta, device, resumed_from)
+    finally:
+        torch.set_num_threads(saved[0])
+        torch.use_deterministic_algorithms(saved[1], warn_only=saved[2])
+
+
+def _bad_loss(phase: str, value: float, epoch: int, batch: int, y: torch.Tensor, part) -> str:
+    bad = np.asarray(part)[~np.isfinite(y.numpy())]
+    cause = (f"non-finite labels at sample indices {bad[:10].tolist()}" if len(bad)
+             else "labels are finite (diverging model or bad inputs)")
+    return f"non-finite {phase} loss ({value}) at epoch {epoch}, batch {batch}: {cause}"
+
+
+@torch.no_grad()
+def _validate(model, data, idx, cfg, stats, device, use_amp, epoch) -> tuple[float, float]:
+    model.eval()
+    abs_norm, abs_n, count = 0.0, 0.0, 0
+    for b, (x, y, part) in enumerate(data.batches(idx, cfg.batch_size, shuffle=False), start=1):
+        x = _to_input(x, device, cfg.channels_last)
+        with torch.autocast(device.type, enabled=use_amp):
+            pred = model(x).float()
+        err = (pred - normalise(y.to(device), stats, cfg.normalise)).abs().sum().item()
+        if not math.isfinite(err):
+            raise TactilepipeError(_bad_loss("validation", err, epoch, b, y, part))
+        abs_norm += err
+        abs_n += (denormalise(pred, stats, cfg.normalise) - y.to(device)).abs().sum().item()
+        count += len(y)
+    return abs_norm / count, abs_n / count
+
+
+# ----------------------------------------------------------------------------- inference
+
+def load_model(checkpoint_path: str | Path, device: str = "cpu", channels_last: bool = True) -> tuple[nn.Module, dict]:
+    """Model of a ``best.pt`` or ``last.pt`` in eval mode, and its metadata (variant, depth,
+    image_size, normalise, label_stats, label, epoch, val_loss, val_mae_n, config, ...)."""
+    ckpt = _load_checkpoint(Path(checkpoint_path))
+    meta = {**ckpt["meta"], "config": ckpt["config"]}
+    model = build_model(meta["variant"], meta["depth"], meta["image_size"])
+    model.load_state_dict(ckpt["model"])
+    model = model.to(resolve_device(device))
+    if channels_last:
+        model = model.to(memory_format=torch.channels_last)
+    return model.eval(), meta
+
+
+def predict(model: nn.Module, data, idx, label_stats: dict, normalise: str, batch_size: int = 256) -> np.ndarray:
+    """Denormalised forces (N) for samples ``idx`` of ``data``, in the order of ``idx``."""
+    device = next(model.parameters()).device
+    cl = _uses_channels_last(model)
+    was_training = model.training
+    model.eval()
+    out = []
+    try:
+        with torch.no_grad():
+            for x, _, _ in data.batches(np.asarray(idx, int), batch_size, shuffle=False):
+                out.append(model(_to_input(x, device, cl)).float().cpu())
+    finally:
+        model.train(was_training)
+    z = torch.cat(out).numpy() if out else np.zeros(0, np.float32)
+    return denormalise(z.astype(np.float64), label_stats, normalise)
+
+
+def latency_ms(model: nn.Module, image_size: int, n: int = 50, warmup: int = 5) -> float:
+    """Median wall time (ms) of one forward pass of one frame pair (batch 1), after warm-up."""
+    device = next(model.parameters()).device
+    x = _to_input(torch.rand(1, 4, image_size, image_size), device, _uses_channels_last(model))
+    was_training = model.training
+    model.eval()
+    times = []
+    try:
+        with torch.no_grad():
+            for i in range(warmup + n):
+                if device.type == "cuda":
+                    torch.cuda.synchronize()
+                t = time.perf_counter()
+                model(x)
+                if device.type == "cuda":
+                    torch.cuda.synchronize()
+                if i >= warmup:
+                    times.append(time.perf_counter() - t)
+    finally:
+        model.train(was_training)
+    return float(np.median(times) * 1000.0)
+
+
+def train_throughput(variant: str = "full", depth: int = 18, image_size: int = 64, batch_size: int = 64,
+                     steps: int = 3, channels_last: bool = True, num_threads: int | None = None,
+                     seed: int = 0) -> float:
+    """Training speed in frame pairs per second (forward + backward + Adam step on random CPU
+    data, after one warm-up step): what an epoch will cost on this machine."""
+    saved = torch.get_num_threads()
+    try:
+        if num_threads:
+            torch.set_num_threads(num_threads)
+        torch.manual_seed(seed)
+        model = build_model(variant, depth, image_size)
+        if channels_last:
+            model = model.to(memory_format=torch.channels_last)
+        opt = torch.optim.Adam(model.parameters(), lr=2e-4)
+        x = _to_input(torch.rand(batch_size, 4, image_size, image_size), torch.device("cpu"), channels_last)
+        y = torch.rand(batch_size)
+        model.train()
+
+        def step():
+            opt.zero_grad(set_to_none=True)
+            nn.functional.l1_loss(model(x), y).backward()
+            opt.step()
+
+        step()
+        t = time.perf_counter()
+        for _ in range(steps):
+            step()
+        return batch_size * steps / (time.perf_counter() - t)
+    finally:
+        torch.set_num_threads(saved)

@@ -1,0 +1,354 @@
+"""Tool-force model and trainer: shapes and parameter counts at paper scale (no training), what
+each variant reads, and short CPU training runs on a tiny synthetic dataset in the loader's format
+(learning, determinism, resume after a crash, NaN handling, denormalised predictions)."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+
+from tactilepipe.errors import TactilepipeError
+from tactilepipe.tool.loader import ToolFrames
+from tactilepipe.tool.model import DEPTHS, MIN_IMAGE_SIZE, VARIANTS, build_model, count_parameters
+from tactilepipe.tool.splits import label_stats
+from tactilepipe.tool.train import TrainConfig, latency_ms, load_model, predict, train
+
+# Exact counts of this implementation (independent of the image size); the paper says "about 57 M"
+# for the full model on ResNet-101.
+EXPECTED_PARAMS = {
+    ("full", 18): 24_401_153, ("full", 34): 34_509_313, ("full", 50): 38_305_537, ("full", 101): 57_297_665,
+    ("no_ref", 18): 24_400_001, ("no_ref", 34): 34_508_161, ("no_ref", 50): 38_304_385, ("no_ref", 101): 57_296_513,
+    ("single", 18): 15_031_361, ("single", 34): 25_139_521, ("single", 50): 28_935_745, ("single", 101): 47_927_873,
+    ("no_gam", 18): 14_565_633, ("no_gam", 34): 24_673_793, ("no_gam", 50): 28_470_017, ("no_gam", 101): 47_462_145,
+}
+
+S = 32            # image size of the training tests (the smoke scale)
+
+
+@pytest.fixture(autouse=True)
+def _two_threads():
+    saved = torch.get_num_threads()
+    torch.set_num_threads(2)
+    yield
+    torch.set_num_threads(saved)
+
+
+# ----------------------------------------------------------------------------- architecture
+
+def test_parameter_counts_at_paper_scale():
+    counts = {}
+    for variant in VARIANTS:
+        for depth in DEPTHS:
+            with torch.device("meta"):          # no memory, no init cost: counts only
+                counts[variant, depth] = count_parameters(build_model(variant, depth, 224))
+    print("\nparameters at 224 px (M)\n" + "variant  " + "".join(f"{d:>10}" for d in DEPTHS))
+    for variant in VARIANTS:
+        print(f"{variant:8} " + "".join(f"{counts[variant, d] / 1e6:10.2f}" for d in DEPTHS))
+    assert counts == EXPECTED_PARAMS
+    assert 50e6 < counts["full", 101] < 65e6                       # published: about 57 M
+    # the fused-channel count sets the stem conv: 512 -> 64 (7x7) vs 256 -> 64 for a single finger
+    assert counts["full", 18] - counts["single", 18] > 256 * 64 * 49
+    # the no-reference model differs only in the first conv of each encoder (1 input channel less)
+    assert counts["full", 101] - counts["no_ref", 101] == 2 * 64 * 9
+
+
+@pytest.mark.parametrize("variant", list(VARIANTS))
+def test_forward_shape_at_224_depth18(variant):
+    torch.manual_seed(0)
+    model = build_model(variant, 18, 224).eval()
+    with torch.no_grad():
+        out = model(torch.rand(1, 4, 224, 224))
+    assert out.shape == (1,) and torch.isfinite(out).all()
+
+
+def test_small_inputs_and_size_checks():
+    for size in (MIN_IMAGE_SIZE, 32, 64):
+        model = build_model("full", 18, size)
+        out = model(torch.rand(2, 4, size, size))            # training mode works with 2 samples
+        assert out.shape == (2,)
+    with pytest.raises(ValueError, match="at least 8"):
+        build_model("full", 18, MIN_IMAGE_SIZE - 1)
+    model = build_model("full", 18, 32).eval()
+    with pytest.raises(ValueError, match="32 px"):
+        model(torch.rand(1, 4, 64, 64))
+    with pytest.raises(ValueError, match="4, S, S"):
+        model(torch.rand(1, 2, 32, 32))
+    with pytest.raises(ValueError, match="unknown model variant"):
+        build_model("tiny", 18, 32)
+    with pytest.raises(ValueError, match="depth"):
+        build_model("full", 152, 32)
+
+
+def test_channels_last_gives_the_same_output():
+    torch.manual_seed(0)
+    model = build_model("full", 18, 32).eval()
+    x = torch.rand(2, 4, 32, 32)
+    with torch.no_grad():
+        a = model(x)
+        model = model.to(memory_format=torch.channels_last)
+        b = model(x.contiguous(memory_format=torch.channels_last))
+    assert torch.allclose(a, b, atol=1e-4, rtol=1e-4)
+
+
+def test_variants_read_only_their_channels():
+    torch.manual_seed(0)
+    x = torch.rand(2, 4, 32, 32)
+    changed_ref, changed_right = x.clone(), x.clone()
+    changed_ref[:, [1, 3]] = torch.rand(2, 2, 32, 32)
+    changed_right[:, [2, 3]] = torch.rand(2, 2, 32, 32)
+    out = {}
+    with torch.no_grad():
+        for variant in VARIANTS:
+            torch.manual_seed(1)
+            m = build_model(variant, 18, 32).eval()
+            out[variant] = [m(t) for t in (x, changed_ref, changed_right)]
+
+    def same(a, b):
+        return torch.equal(a, b)
+
+    assert same(out["no_ref"][0], out["no_ref"][1])            # references are never read
+    assert not same(out["no_ref"][0], out["no_ref"][2])        # the right finger is
+    assert same(out["single"][0], out["single"][2])            # the right finger is never read
+    assert not same(out["single"][0], out["single"][1])        # the left reference is
+    for variant in ("full", "no_gam"):
+        assert not same(out[variant][0], out[variant][1])
+        assert not same(out[variant][0], out[variant][2])
+
+
+def test_no_gam_has_no_gam_parameters():
+    full, no_gam = build_model("full", 18, 32), build_model("no_gam", 18, 32)
+    assert sum("gam" in n for n, _ in full.named_parameters()) > 0
+    assert sum("gam" in n for n, _ in no_gam.named_parameters()) == 0
+
+
+# ----------------------------------------------------------------------------- synthetic data
+
+def make_dataset(root: Path, n_trials: int = 8, per_trial: int = 20, size: int = S, seed: int = 0,
+                 nan_at: int | None = None) -> Path:
+    """A tiny dataset in the dataset stage's format: per trial a textured reference of each finger;
+    each frame adds a Gaussian blob whose brightness grows with the force (left 1x, right 0.6x)."""
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[0:size, 0:size] / size
+    refs = np.empty((n_trials, 2, size, size), np.uint8)
+    frames = np.empty((n_trials * per_trial, 2, size, size), np.uint8)
+    rows = []
+    for t in range(n_trials):
+        base = [60 + 40 * rng.random() * (xx + yy) + rng.normal(0, 3, (size, size)) for _ in range(2)]
+        refs[t] = np.clip(np.stack(base), 0, 255)
+        cx, cy = rng.uniform(0.3, 0.7, 2)
+        blob = np.exp(-((xx - cx) ** 2 + (yy - cy) ** 2) / 0.02)
+        for k in range(per_trial):
+            force = rng.uniform(2.0, 20.0)
+            i = t * per_trial + k
+            for s, gain in ((0, 1.0), (1, 0.6)):
+                img = base[s] + gain * 7.0 * force * blob + rng.normal(0, 2, (size, size))
+                frames[i, s] = np.clip(img, 0, 255)
+            rows.append({"trial_index": t, "trial": f"trial{t:02d}", "tool": "screwdriver_1", "pose": "p0",
+                         "normal": force, "shear": 0.1 * force})
+    samples = pd.DataFrame(rows)
+    if nan_at is not None:
+        samples.loc[nan_at, "normal"] = np.nan
+    root.mkdir(parents=True, exist_ok=True)
+    np.save(root / "frames.npy", frames)
+    np.save(root / "references.npy", refs)
+    samples.to_parquet(root / "samples.parquet", index=False)
+    return root
+
+
+def make_split_dict(data: ToolFrames) -> dict:
+    trial = data.trial_index
+    train = np.flatnonzero(trial < 6)
+    val = np.flatnonzero(trial == 6)
+    test = np.flatnonzero(trial == 7)
+    finite = train[np.isfinite(data.labels[train])]
+    return {"name": "trial", "label": "normal", "train": train.tolist(), "validation": val.tolist(),
+            "test": test.tolist(), "label_stats": label_stats(data.labels[finite])}
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    root = make_dataset(tmp_path_factory.mktemp("tool_model") / "dataset")
+    data = ToolFrames(root, "normal")
+    return data, make_split_dict(data)
+
+
+def quick_cfg(**kw) -> TrainConfig:
+    base = dict(variant="full", depth=18, image_size=S, batch_size=24, max_epochs=3, patience=None,
+                seed=7, num_threads=2, lr=2e-4)
+    return TrainConfig(**{**base, **kw})
+
+
+def weights(path: Path) -> dict:
+    return torch.load(path, map_location="cpu", weights_only=True)["model"]
+
+
+def assert_same_weights(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for k in a:
+        assert torch.equal(a[k], b[k]), k
+
+
+class CrashingData:
+    """Wraps a dataset; the training iterator of epoch ``crash_epoch`` dies after one batch."""
+
+    def __init__(self, data, crash_epoch: int):
+        self.data, self.crash_epoch, self.train_epochs = data, crash_epoch, 0
+
+    def __len__(self):
+        return len(self.data)
+
+    def batches(self, idx, batch_size, shuffle, seed=0):
+        if shuffle:
+            self.train_epochs += 1
+        it = self.data.batches(idx, batch_size, shuffle, seed)
+        if shuffle and self.train_epochs == self.crash_epoch:
+            yield next(it)
+            raise KeyboardInterrupt("simulated crash")
+        yield from it
+
+
+# ----------------------------------------------------------------------------- training
+
+def test_training_lowers_validation_loss(tiny, tmp_path):
+    data, split = tiny
+    cfg = quick_cfg(max_epochs=6, lr=1e-3, batch_size=16)
+    summary = train(data, split, cfg, tmp_path, progress=False)
+    with open(tmp_path / "history.csv") as f:
+        hist = list(csv.DictReader(f))
+    assert [int(h["epoch"]) for h in hist] == list(range(1, 7))
+    assert list(hist[0]) == ["epoch", "train_loss", "val_loss", "val_mae_n", "lr", "epoch_s", "wall_s"]
+    val = np.array([float(h["val_loss"]) for h in hist])
+    train_loss = np.array([float(h["train_loss"]) for h in hist])
+    wall = np.array([float(h["wall_s"]) for h in hist])
+    assert np.all(np.diff(wall) > 0)
+
+    # the same initial model, before any training step
+    st = split["label_stats"]
+    torch.manual_seed(cfg.seed)
+    untrained = build_model("full", 18, S).eval()
+    x_val, y_val = data.arrays(split["validation"])
+    with torch.no_grad():
+        z = untrained(torch.from_numpy(x_val).float() / 255).numpy()
+    t_val = (y_val - st["min"]) / (st["max"] - st["min"])
+    untrained_loss = np.abs(z - t_val).mean()
+    mean_loss = np.abs(t_val - (data.labels[split["train"]].mean() - st["min"]) / (st["max"] - st["min"])).mean()
+    print(f"\nval loss: untrained {untrained_loss:.3f}, predicting the training mean {mean_loss:.3f}, "
+          f"per epoch {np.round(val, 3).tolist()}; train loss {np.round(train_loss, 3).tolist()}")
+    assert summary["epochs_run"] == 6 and summary["device"] == "cpu" and not summary["early_stopped"]
+    assert summary["parameters"] == EXPECTED_PARAMS["full", 18]
+    assert summary["best_val_loss"] == pytest.approx(val.min())
+    assert summary["best_epoch"] == int(np.argmin(val)) + 1
+    assert summary["train_wall_s"] == pytest.approx(wall[-1])
+    # Six epochs of 8 steps take the full model (faithful GAM, BatchNorm on 1x1 maps at 32 px) from
+    # its initial outputs to about the label scale, not yet below the training-mean predictor: its
+    # validation loss is noisy from epoch to epoch, so only robust margins are asserted here.
+    assert val.min() < 0.8 * untrained_loss
+    assert train_loss[-3:].mean() < 0.5 * train_loss[0]
+    assert (tmp_path / "best.pt").exists() and (tmp_path / "last.pt").exists()
+
+    # predict: denormalised N-scale forces, equal to model output mapped back by the label stats
+    model, meta = load_model(tmp_path / "best.pt")
+    assert meta["epoch"] == summary["best_epoch"] and meta["normalise"] == "minmax"
+    idx = np.asarray(split["validation"])[::-1]            # any order, returned in that order
+    pred = predict(model, data, idx, meta["label_stats"], meta["normalise"], batch_size=7)
+    assert pred.shape == (len(idx),)
+    with torch.no_grad():
+        x, _ = data.arrays(idx)
+        raw = model(torch.from_numpy(x).float().div(255).contiguous(memory_format=torch.channels_last)).numpy()
+    np.testing.assert_allclose(pred, raw * (st["max"] - st["min"]) + st["min"], rtol=1e-4, atol=1e-3)
+    assert np.abs(pred - data.labels[idx]).mean() == pytest.approx(summary["best_val_mae_n"], rel=1e-3)
+    assert 1.5 < pred.mean() < 30.0                          # N, not the [0, 1] training scale
+
+    ms = latency_ms(model, S, n=5)
+    assert isinstance(ms, float) and ms > 0.0
+
+
+def test_same_seed_same_weights_and_resume_equals_uninterrupted(tiny, tmp_path):
+    data, split = tiny
+    cfg = quick_cfg(max_epochs=2, max_train_batches_per_epoch=2, batch_size=16)
+    a = train(data, split, cfg, tmp_path / "a", progress=False)
+    b = train(data, split, cfg, tmp_path / "b", progress=False)
+    assert_same_weights(weights(tmp_path / "a" / "last.pt"), weights(tmp_path / "b" / "last.pt"))
+    assert a["best_val_loss"] == b["best_val_loss"]
+
+    other = train(data, split, quick_cfg(max_epochs=1, max_train_batches_per_epoch=2, batch_size=16, seed=8),
+                  tmp_path / "other", progress=False)
+    assert other["epochs_run"] == 1
+    first_a = torch.load(tmp_path / "a" / "last.pt", weights_only=True)["history"][0]
+    assert first_a["val_loss"] != other["best_val_loss"]            # another seed, another run
+
+    crashing = CrashingData(data, crash_epoch=2)
+    with pytest.raises(KeyboardInterrupt):
+        train(crashing, split, cfg, tmp_path / "c", progress=False)
+    assert torch.load(tmp_path / "c" / "last.pt", weights_only=True)["epoch"] == 1
+    assert len((tmp_path / "c" / "history.csv").read_text().splitlines()) == 2     # header + epoch 1
+    c = train(data, split, cfg, tmp_path / "c", progress=False)
+    assert c["resumed_from_epoch"] == 1 and c["epochs_run"] == 2
+    assert_same_weights(weights(tmp_path / "a" / "last.pt"), weights(tmp_path / "c" / "last.pt"))
+    assert_same_weights(weights(tmp_path / "a" / "best.pt"), weights(tmp_path / "c" / "best.pt"))
+    hist_a = (tmp_path / "a" / "history.csv").read_text().splitlines()
+    hist_c = (tmp_path / "c" / "history.csv").read_text().splitlines()
+    assert [r.split(",")[:5] for r in hist_a] == [r.split(",")[:5] for r in hist_c]   # timings aside
+
+    # a finished run re-run is a no-op; a run with other settings refuses the checkpoint
+    again = train(data, split, cfg, tmp_path / "a", progress=False)
+    assert again["epochs_run"] == 2 and again["resumed_from_epoch"] == 2
+    with pytest.raises(TactilepipeError, match="different settings"):
+        train(data, split, quick_cfg(max_epochs=2, max_train_batches_per_epoch=2, batch_size=16, lr=1e-3),
+              tmp_path / "a", progress=False)
+
+
+def test_early_stopping(tiny, tmp_path):
+    data, split = tiny
+    # a far too large learning rate: the validation loss soon stops improving
+    s = train(data, split, quick_cfg(max_epochs=12, patience=2, lr=0.05, max_train_batches_per_epoch=1,
+                                           batch_size=16, variant="no_gam"),
+              tmp_path, progress=False)
+    hist = pd.read_csv(tmp_path / "history.csv")
+    assert s["early_stopped"] and s["epochs_run"] == s["best_epoch"] + 2 < 12
+    assert len(hist) == s["epochs_run"] and hist["val_loss"].idxmin() + 1 == s["best_epoch"]
+
+
+def test_nan_label_names_epoch_and_batch(tmp_path):
+    root = make_dataset(tmp_path / "nan", nan_at=5)
+    data = ToolFrames(root, "normal")
+    split = make_split_dict(data)
+    with pytest.raises(TactilepipeError, match=r"epoch 1, batch \d+.*sample indices \[5\]"):
+        train(data, split, quick_cfg(max_epochs=1), tmp_path / "run", progress=False)
+
+
+def test_nan_loss_from_inputs_names_epoch_and_batch(tiny, tmp_path):
+    data, split = tiny
+
+    class NanInputs:
+        def __len__(self):
+            return len(data)
+
+        def batches(self, idx, batch_size, shuffle, seed=0):
+            for b, (x, y, part) in enumerate(data.batches(idx, batch_size, shuffle, seed)):
+                if shuffle and b == 1:
+                    x = x.clone()
+                    x[0, 0, 0, 0] = float("nan")
+                yield x, y, part
+
+    with pytest.raises(TactilepipeError, match=r"epoch 1, batch 2: labels are finite"):
+        train(NanInputs(), split, quick_cfg(max_epochs=1), tmp_path, progress=False)
+
+
+def test_zscore_normalisation_and_bad_settings(tiny, tmp_path):
+    data, split = tiny
+    s = train(data, split, quick_cfg(max_epochs=1, normalise="zscore", max_train_batches_per_epoch=2),
+              tmp_path / "z", progress=False)
+    model, meta = load_model(tmp_path / "z" / "best.pt")
+    assert meta["normalise"] == "zscore"
+    pred = predict(model, data, split["validation"], meta["label_stats"], "zscore")
+    assert np.abs(pred - data.labels[split["validation"]]).mean() == pytest.approx(s["best_val_mae_n"], rel=1e-3)
+    with pytest.raises(TactilepipeError, match="normalisation"):
+        train(data, split, quick_cfg(normalise="log"), tmp_path / "bad", progress=False)
+    with pytest.raises(TactilepipeError, match="image_size"):
+        train(data, split, quick_cfg(image_size=64), tmp_path / "bad", progress=False)
