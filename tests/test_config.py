@@ -209,3 +209,12 @@ def test_an_explicit_override_wins_over_the_scale_overlay(params_path):
     p = load_params(params_path, {"scale": "smoke", "simulate_volume": {"rate_hz": 500}})
     assert p["simulate_volume"]["rate_hz"] == 500
     assert p["simulate_volume"]["lifts_per_volume"] == 5          # the rest of the overlay still applies
+
+
+def test_atomic_outputs_get_the_usual_file_mode(tmp_path):
+    import os
+    from tactilepipe.atomic import write_text
+    write_text(tmp_path / "a.txt", "x")
+    umask = os.umask(0)
+    os.umask(umask)
+    assert (tmp_path / "a.txt").stat().st_mode & 0o777 == 0o666 & ~umask
