@@ -21,6 +21,7 @@ zero-force samples at the start of the trial.
 from __future__ import annotations
 
 import json
+import math
 import re
 import xml.etree.ElementTree as ET
 from dataclasses import asdict, dataclass, field
@@ -63,15 +64,34 @@ class TrialMeta:
             raise InputError(path, "missing: every trial needs meta.json") from None
         except json.JSONDecodeError as exc:
             raise InputError(path, f"not valid JSON: {exc}") from None
-        known = set(cls.__dataclass_fields__)
+        return cls.from_dict(raw, path)
+
+    @classmethod
+    def from_dict(cls, raw, where: str | Path, default_trial: str | None = None) -> "TrialMeta":
+        """Validated metadata from a mapping (meta.json, a bag's sidecar): every required key,
+        no unknown key, kind normal/shear, non-empty names, finite numbers."""
+        if isinstance(raw, cls):
+            raw = asdict(raw)
+        if not isinstance(raw, dict):
+            raise InputError(where, f"trial metadata must be a JSON object, got {type(raw).__name__}")
+        raw = dict(raw)
+        if default_trial is not None:
+            raw.setdefault("trial", default_trial)
         missing = {"trial", "tool", "kind", "orientation_deg", "insertion_mm"} - set(raw)
         if missing:
-            raise InputError(path, f"missing keys {sorted(missing)}")
-        unknown = set(raw) - known
+            raise InputError(where, f"trial metadata missing keys {sorted(missing)}")
+        unknown = set(raw) - set(cls.__dataclass_fields__)
         if unknown:
-            raise InputError(path, f"unknown keys {sorted(unknown)}")
+            raise InputError(where, f"trial metadata has unknown keys {sorted(unknown)}")
         if raw["kind"] not in ("normal", "shear"):
-            raise InputError(path, f"kind '{raw['kind']}' must be normal or shear")
+            raise InputError(where, f"kind '{raw['kind']}' must be normal or shear")
+        for key in ("trial", "tool"):
+            if not isinstance(raw[key], str) or not raw[key]:
+                raise InputError(where, f"{key} must be a non-empty string, got {raw[key]!r}")
+        for key in ("orientation_deg", "insertion_mm", "camera_fps", "serial_hz"):
+            value = raw.get(key, 0.0)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise InputError(where, f"{key} must be a finite number, got {value!r}")
         return cls(**raw)
 
 

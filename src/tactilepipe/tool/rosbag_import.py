@@ -17,11 +17,10 @@ Formats: a ROS1 bag is a file (``#ROSBAG V2.0``); a ROS2 bag is a directory with
 from __future__ import annotations
 
 import json
-import math
 import os
 import shutil
 import tempfile
-from dataclasses import asdict, fields, MISSING
+from dataclasses import asdict
 from functools import lru_cache
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -97,32 +96,8 @@ def _bag_stem(path: Path) -> str:
 
 def _check_meta(where: str | Path, meta: Mapping, default_trial: str) -> dict:
     """Validate trial metadata with the keys of TrialMeta; ``trial`` defaults to ``default_trial``."""
-    if isinstance(meta, TrialMeta):
-        meta = asdict(meta)
-    if not isinstance(meta, Mapping):
-        raise InputError(where, f"trial metadata must be a JSON object, got {type(meta).__name__}")
-    raw = dict(meta)
-    raw.setdefault("trial", default_trial)
-    known = {f.name for f in fields(TrialMeta)}
-    required = {f.name for f in fields(TrialMeta)
-                if f.default is MISSING and f.default_factory is MISSING}
-    missing = required - set(raw)
-    if missing:
-        raise InputError(where, f"trial metadata missing keys {sorted(missing)}")
-    unknown = set(raw) - known
-    if unknown:
-        raise InputError(where, f"trial metadata has unknown keys {sorted(unknown)}")
-    if raw["kind"] not in ("normal", "shear"):
-        raise InputError(where, f"kind '{raw['kind']}' must be normal or shear")
-    for key in ("trial", "tool"):
-        if not isinstance(raw[key], str) or not raw[key]:
-            raise InputError(where, f"{key} must be a non-empty string, got {raw[key]!r}")
-    for key in ("orientation_deg", "insertion_mm", "camera_fps", "serial_hz"):
-        if key in raw:
-            value = raw[key]
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise InputError(where, f"{key} must be a finite number, got {value!r}")
-    return asdict(TrialMeta(**raw))
+    raw = meta if isinstance(meta, TrialMeta) else (dict(meta) if isinstance(meta, Mapping) else meta)
+    return asdict(TrialMeta.from_dict(raw, where, default_trial))
 
 
 def read_sidecar_meta(bag_path: str | Path) -> dict:
