@@ -48,8 +48,7 @@ def reference_index(t_s: np.ndarray, force_mag: np.ndarray, rule: str, contact_n
     return np.arange(max(1, end))
 
 
-def load_trial(shard: Path, sync: dict) -> dict:
-    info = read_shard_info(shard)
+def load_trial(shard: Path, info: dict, sync: dict) -> dict:
     table = pq.read_table(shard).to_pandas()
     frames = table[table["row"] == "frame"]
     force = table[table["row"] == "force"]
@@ -77,7 +76,7 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
     for shard in shards:
         info = read_shard_info(shard)
         if info["kind"] == kind:
-            trials.append(load_trial(Path(shard), sync))
+            trials.append(load_trial(Path(shard), info, sync))
     if not trials:
         raise InputError(out_dir, f"no '{kind}' trials among {len(shards)} shards")
     size = trials[0]["info"]["image_size"]

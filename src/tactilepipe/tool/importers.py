@@ -23,6 +23,18 @@ PUBLIC_KINDS = {"data_normal": "normal", "data_shear": "shear"}
 PUBLIC_RATE_HZ = 15.0          # the public rig samples frames and force together at 15 FPS
 
 
+def trial_format(path: str | Path) -> str | None:
+    """native, public or ros for a trial's path (None when it is not a trial)."""
+    path = Path(path)
+    if path.is_dir() and (path / "meta.json").exists():
+        return "native"
+    if path.is_dir() and path.parent.name in PUBLIC_KINDS:
+        return "public"
+    if path.suffix == ".bag" or (path.is_dir() and (path / "metadata.yaml").exists()):
+        return "ros"
+    return None
+
+
 def list_trials(session_dir: str | Path) -> list[tuple[str, Path, str]]:
     """(trial name, path, format) of every trial in a session, sorted by name."""
     session_dir = Path(session_dir)
@@ -30,12 +42,10 @@ def list_trials(session_dir: str | Path) -> list[tuple[str, Path, str]]:
         raise InputError(session_dir, "session folder not found")
     found = []
     for path in sorted(session_dir.iterdir()):
-        if path.is_dir() and (path / "meta.json").exists():
-            found.append((path.name, path, "native"))
-        elif path.is_dir() and path.name in PUBLIC_KINDS:
+        if path.is_dir() and path.name in PUBLIC_KINDS:
             found += [(f"{path.name}-{t.name}", t, "public") for t in sorted(path.iterdir()) if t.is_dir()]
-        elif path.suffix == ".bag" or (path.is_dir() and (path / "metadata.yaml").exists()):
-            found.append((path.stem if path.is_file() else path.name, path, "ros"))
+        elif (fmt := trial_format(path)) is not None:
+            found.append((path.stem if path.is_file() else path.name, path, fmt))
     if not found:
         raise InputError(session_dir, "no trials found (native trial folders, data_normal/ or data_shear/, "
                                       "or ROS bags with .meta.json sidecars)")

@@ -10,15 +10,7 @@ import pandas as pd
 
 from tactilepipe.atomic import write_text
 from tactilepipe.tool import figures
-from tactilepipe.tool.importers import PUBLIC_KINDS, open_trial
-
-
-def _format_of(source: Path) -> str:
-    if (source / "meta.json").exists():
-        return "native"
-    if source.parent.name in PUBLIC_KINDS:
-        return "public"
-    return "ros"
+from tactilepipe.tool.importers import open_trial, trial_format
 
 
 def qc_markdown(qc: dict, label: str) -> str:
@@ -61,7 +53,7 @@ def build_data_report(data_dir: Path, out_dir: Path, label: str, level_n: float)
                           f"{name}: tactile change vs reference frame", figs / "rmse_vs_force.png")
     source = Path(qc["trials"][trial_index]["source"]) if "source" in qc["trials"][trial_index] else None
     if source is not None and source.exists():
-        raw = open_trial(source, _format_of(source))
+        raw = open_trial(source, trial_format(source))
         phases = figures.press_phases(one["t_s"].to_numpy(), one[label].to_numpy())
         t_ns = one["t_ns"].to_numpy()
         images = {}

@@ -17,10 +17,7 @@ from tactilepipe.atomic import write_json, write_text
 from tactilepipe.tool import figures_models as fm
 from tactilepipe.tool.evaluate import baselines, evaluate, tactile_rmse_features
 from tactilepipe.tool.loader import ToolFrames
-from tactilepipe.volume.report import _table_files
-
-VARIANTS = ("full", "no_ref", "single", "no_gam")
-
+from tactilepipe.tables import write_table
 
 def _load(run_dir: Path) -> tuple[dict, pd.DataFrame]:
     return json.loads((run_dir / "eval.json").read_text()), pd.read_parquet(run_dir / "predictions.parquet")
@@ -51,14 +48,14 @@ def build_model_report(scene_dir: Path, scene: str, variants: list[str], sweep_r
                      "train (s)": e.get("train_s", np.nan), "latency (ms)": e.get("latency_ms", np.nan),
                      "parameters": e.get("parameters", 0)})
     tables = scene_dir / "tables"
-    _table_files(pd.DataFrame(rows), tables / "variants",
+    write_table(pd.DataFrame(rows), tables / "variants",
                  f"{scene}: test set of the '{split['name']}' split ({len(test)} frame pairs)", "{:.4f}")
     per_tool = {v: pd.DataFrame(evals[v]["per_tool"]) for v in variants}
     per_window = {v: pd.DataFrame(evals[v]["per_window"]) for v in variants}
     pt = pd.concat([t.assign(model=v) for v, t in per_tool.items()], ignore_index=True)
     pw = pd.concat([t.assign(model=v) for v, t in per_window.items()], ignore_index=True)
-    _table_files(pt[["model", "tool", "mae", "std_abs_error", "n"]], tables / "per_tool", "|error| per tool (N)", "{:.3f}")
-    _table_files(pw[["model", "window", "mae", "std_abs_error", "n"]], tables / "per_window",
+    write_table(pt[["model", "tool", "mae", "std_abs_error", "n"]], tables / "per_tool", "|error| per tool (N)", "{:.3f}")
+    write_table(pw[["model", "window", "mae", "std_abs_error", "n"]], tables / "per_window",
                  "|error| per force window (N), with frame counts", "{:.3f}")
 
     runs = []
@@ -68,13 +65,13 @@ def build_model_report(scene_dir: Path, scene: str, variants: list[str], sweep_r
                      "mae": e["mae"], "r2": e["r2"], "train_s": e["train_s"], "latency_ms": e["latency_ms"],
                      "parameters": e["parameters"]})
     runs = pd.DataFrame(runs)
-    _table_files(runs.rename(columns={"name_": "run"}), tables / "runtime",
+    write_table(runs.rename(columns={"name_": "run"}), tables / "runtime",
                  "Error against run time: every model trained (2 CPU cores)", "{:.4f}")
 
     loto = None
     if (models / "full_loto" / "eval.json").exists():
         loto, _ = _load(models / "full_loto")
-        _table_files(pd.DataFrame(loto["per_tool"]), tables / "loto",
+        write_table(pd.DataFrame(loto["per_tool"]), tables / "loto",
                      f"Full model, leave-one-tool-out: the held-out tool ({loto['split']})", "{:.3f}")
 
     figs = scene_dir / "figures"

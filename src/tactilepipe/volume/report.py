@@ -9,18 +9,9 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
-from tactilepipe.atomic import write_json, write_text
+from tactilepipe.atomic import write_json
+from tactilepipe.tables import write_table
 from tactilepipe.volume import figures
-
-
-def _table_files(table: pd.DataFrame, stem: Path, title: str, floatfmt: str = "{:.4f}") -> None:
-    write_text(stem.with_suffix(".csv"), table.to_csv(index=False))
-    cols = list(table.columns)
-    lines = [f"**{title}**", "", "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    for row in table.itertuples(index=False):
-        cells = [floatfmt.format(v) if isinstance(v, (float, np.floating)) else str(v) for v in row]
-        lines.append("| " + " | ".join(cells) + " |")
-    write_text(stem.with_suffix(".md"), "\n".join(lines) + "\n")
 
 
 def _summary(folds: pd.DataFrame) -> dict:
@@ -67,12 +58,12 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
     unseen_table["abs_error_ml"] = (unseen_table["estimated_ml"] - unseen_table["true_ml"]).abs()
 
     tables = res / "tables"
-    _table_files(table1, tables / "table1_r2", "Table 1: R² on test lifts (mean ± std over folds)")
-    _table_files(table2, tables / "table2_volumes", f"Table 2: true vs estimated volume, MLP {best}", "{:.2f}")
-    _table_files(unseen_table, tables / "unseen_volumes", f"Unseen volumes, MLP {best}", "{:.2f}")
-    _table_files(runtime, tables / "runtime", "Error against run time (fit per fold, predict per sample)")
+    write_table(table1, tables / "table1_r2", "Table 1: R² on test lifts (mean ± std over folds)")
+    write_table(table2, tables / "table2_volumes", f"Table 2: true vs estimated volume, MLP {best}", "{:.2f}")
+    write_table(unseen_table, tables / "unseen_volumes", f"Unseen volumes, MLP {best}", "{:.2f}")
+    write_table(runtime, tables / "runtime", "Error against run time (fit per fold, predict per sample)")
     grid = pd.read_csv(res / "mlp" / "grid.csv")
-    _table_files(grid, tables / "grid_search", f"MLP grid search ({p['mlp']['grid']['modality']}, "
+    write_table(grid, tables / "grid_search", f"MLP grid search ({p['mlp']['grid']['modality']}, "
                  f"lift-grouped {p['mlp']['grid']['inner_folds']}-fold CV on fold d1's training lifts)")
 
     figs = res / "figures"

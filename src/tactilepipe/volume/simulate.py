@@ -26,6 +26,7 @@ import numpy as np
 from tactilepipe import papillarray as pa
 from tactilepipe.atomic import write_text
 from tactilepipe.bagio import write_bag
+from tactilepipe.errors import InputError
 
 G = 9.81
 SESSION_EPOCH_S = 1_767_225_600  # 2026-01-01T00:00:00Z: simulated sessions start here
@@ -265,7 +266,6 @@ def write_session_labels(session_dir: str | Path, lifts: list[Lift]) -> None:
 
 
 def read_session_labels(session_dir: str | Path) -> list[dict]:
-    from tactilepipe.errors import InputError
     path = Path(session_dir) / "lifts.csv"
     if not path.exists():
         raise InputError(path, "missing: every recording session needs lifts.csv (bag,volume_ml,set)")
