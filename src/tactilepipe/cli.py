@@ -349,4 +349,19 @@ def main(argv: list[str] | None = None) -> int:
     except TactilepipeError as exc:
         print(f"tactilepipe {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:
+        # the machine, not the data: a full disk, a read-only or forbidden folder, a size limit,
+        # a file that vanished. One line naming the file, no traceback.
+        print(f"tactilepipe {args.command}: error: {_os_error_line(exc)}", file=sys.stderr)
+        return 1
     return 0
+
+
+def _os_error_line(exc: OSError) -> str:
+    """'<path>: <problem>' of an OSError (pyarrow and numpy often leave filename unset)."""
+    import os
+    problem = exc.strerror or (os.strerror(exc.errno) if exc.errno else str(exc) or type(exc).__name__)
+    if exc.filename is None:
+        return f"{problem} ({str(exc).strip() or type(exc).__name__})" if str(exc) != problem else problem
+    where = f"{exc.filename} -> {exc.filename2}" if exc.filename2 else str(exc.filename)
+    return f"{where}: {problem}"
