@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
-from tactilepipe.atomic import atomic_path, write_json, write_parquet
+from tactilepipe.atomic import atomic_path, open_memmap, write_json, write_parquet
 from tactilepipe.errors import InputError
 from tactilepipe.tool.ingest import read_shard_info
 from tactilepipe.tool.raw import SENSORS
@@ -84,8 +84,8 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
     rows, qc = [], []
     out_dir.mkdir(parents=True, exist_ok=True)
     with atomic_path(out_dir / "frames.npy") as tmp_frames, atomic_path(out_dir / "references.npy") as tmp_refs:
-        frames = np.lib.format.open_memmap(tmp_frames, "w+", np.uint8, (n, 2, size, size))
-        refs = np.lib.format.open_memmap(tmp_refs, "w+", np.uint8, (len(trials), 2, size, size))
+        frames = open_memmap(tmp_frames, (n, 2, size, size), np.uint8)
+        refs = open_memmap(tmp_refs, (len(trials), 2, size, size), np.uint8)
         k = 0
         for ti, trial in enumerate(trials):
             info, m = trial["info"], len(trial["t_ns"])
