@@ -37,7 +37,9 @@ ADC_COUNTS, ADC_VOLTS = 1023, 5.0
 ADC_ZERO_V = 2.5
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 FRAME_NAME = "frame_{:06d}.png"
-SERIAL_HEADER = re.compile(r"^#\s*start_host_ns=(\d+)\s*$")
+SERIAL_HEADER = re.compile(r"^#\s*start_host_ns=([0-9]+)\s*$")
+_UINT = re.compile(r"^[0-9]+$")
+_INT = re.compile(r"^-?[0-9]+$")
 
 
 @dataclass
@@ -62,7 +64,7 @@ class TrialMeta:
             raw = json.loads(path.read_text())
         except FileNotFoundError:
             raise InputError(path, "missing: every trial needs meta.json") from None
-        except json.JSONDecodeError as exc:
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise InputError(path, f"not valid JSON: {exc}") from None
         return cls.from_dict(raw, path)
 
@@ -100,16 +102,26 @@ def read_frame_index(sensor_dir: str | Path) -> np.ndarray:
     path = Path(sensor_dir) / "frames.csv"
     if not path.exists():
         raise InputError(path, "missing: every sensor folder needs frames.csv (frame,host_ns)")
-    lines = path.read_text().splitlines()
+    try:
+        lines = path.read_bytes().decode("ascii").split("\n")
+    except UnicodeDecodeError as exc:
+        line = path.read_bytes()[:exc.start].count(b"\n") + 1
+        raise InputError(path, f"non-ASCII byte 0x{exc.object[exc.start]:02x}: not a frames.csv written by the rig",
+                         f"line {line}") from None
+    lines = [ln.removesuffix("\r") for ln in lines]
+    if lines and lines[-1] == "":
+        lines.pop()
     if not lines or lines[0].strip() != "frame,host_ns":
         raise InputError(path, "header must be 'frame,host_ns'", "line 1")
     stamps = np.empty(len(lines) - 1, np.int64)
     for i, line in enumerate(lines[1:]):
-        parts = line.split(",")
-        if len(parts) != 2 or not parts[0].strip().isdigit() or not parts[1].strip().lstrip("-").isdigit():
+        parts = [p.strip() for p in line.split(",")]
+        if len(parts) != 2 or not _UINT.match(parts[0]) or not _INT.match(parts[1]):
             raise InputError(path, f"expected 'frame,host_ns' integers, got {line!r}", f"line {i + 2}")
         if int(parts[0]) != i:
             raise InputError(path, f"frame number {parts[0]} out of sequence (expected {i})", f"line {i + 2}")
+        if not -2**63 < int(parts[1]) < 2**63:
+            raise InputError(path, f"host_ns {parts[1]} does not fit in 64 bits", f"line {i + 2}")
         stamps[i] = int(parts[1])
     if len(stamps) and (np.diff(stamps) <= 0).any():
         k = int(np.argmax(np.diff(stamps) <= 0)) + 1
@@ -138,12 +150,22 @@ def read_calibration(path: str | Path) -> np.ndarray:
     rows = {ax.get("Name"): ax.get("values", "") for ax in root.iter("UserAxis")}
     if set(AXES) - set(rows):
         raise InputError(path, f"UserAxis rows missing: {sorted(set(AXES) - set(rows))}")
-    try:
-        matrix = np.array([[float(v) for v in rows[a].split()] for a in AXES])
-    except ValueError as exc:
-        raise InputError(path, f"non-numeric calibration value: {exc}") from None
-    if matrix.shape != (6, 6) or not np.isfinite(matrix).all():
-        raise InputError(path, f"calibration must be 6x6 finite numbers, got shape {matrix.shape}")
+    names = [ax.get("Name") for ax in root.iter("UserAxis")]
+    twice = sorted({n for n in names if names.count(n) > 1 and n in AXES})
+    if twice:
+        raise InputError(path, f"UserAxis rows given more than once: {twice}")
+    values = {}
+    for a in AXES:
+        try:
+            values[a] = [float(v) for v in rows[a].split()]
+        except ValueError as exc:
+            raise InputError(path, f"non-numeric calibration value: {exc}", f"UserAxis {a}") from None
+        if len(values[a]) != 6:
+            raise InputError(path, f"calibration rows need 6 values, got {len(values[a])}", f"UserAxis {a}")
+    matrix = np.array([values[a] for a in AXES])
+    if not np.isfinite(matrix).all():
+        a = AXES[int(np.argmax(~np.isfinite(matrix).all(axis=1)))]
+        raise InputError(path, "calibration values must be finite numbers", f"UserAxis {a}")
     return matrix
 
 

@@ -8,6 +8,7 @@ jumps backwards (a reset mid-trial, after which no single offset aligns the cloc
 
 from __future__ import annotations
 
+import re
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,6 +19,10 @@ from tactilepipe.errors import InputError
 from tactilepipe.tool.layout import ADC_COUNTS, SERIAL_HEADER
 
 N_CHANNELS = 6
+MAX_ARDUINO_MS = 2**32 - 1           # millis() is an unsigned 32-bit counter
+MAX_HOST_NS = 2**62                  # host clock in ns since 1970: far beyond any real date
+_INT = re.compile(r"^-?[0-9]+$")     # plain decimal integers only (int() would take "1_0", "+1", " 1")
+_GARBAGE = re.compile(r"[^\x20-\x7e\t\r]")   # non-ASCII (decoded as U+FFFD) and control bytes
 
 
 @dataclass
@@ -33,15 +38,16 @@ def _parse_line(text: str) -> tuple[int, list[int]] | str:
     """(arduino_ms, counts) or the reason the line is dropped."""
     if not text.strip():
         return "empty line"
-    parts = text.strip().split(",")
+    parts = [p.strip() for p in text.strip().split(",")]
     if len(parts) != 1 + N_CHANNELS:
         return "wrong column count"
-    try:
-        values = [int(p) for p in parts]
-    except ValueError:
+    if not all(_INT.match(p) for p in parts):
         return "non-numeric field"
+    values = [int(p) for p in parts]
     if values[0] < 0:
         return "negative time"
+    if values[0] > MAX_ARDUINO_MS:
+        return "time out of range"
     if any(not 0 <= v <= ADC_COUNTS for v in values[1:]):
         return "ADC count out of range"
     return values[0], values[1:]
@@ -53,16 +59,22 @@ def read_serial_log(path: str | Path, max_drop_fraction: float = 0.2) -> SerialL
         data = path.read_bytes()
     except FileNotFoundError:
         raise InputError(path, "missing: every trial needs the Arduino's force.log") from None
-    lines = data.decode("ascii", errors="replace").splitlines()
+    # lines end at b"\n" only (str.splitlines would also split at stray \x0b, \x1c... bytes,
+    # and the line numbers in messages would no longer be an editor's)
+    lines = [ln.decode("ascii", errors="replace").removesuffix("\r") for ln in data.split(b"\n")]
+    if lines and lines[-1] == "":
+        lines.pop()
     if not lines:
         raise InputError(path, "serial log is empty")
     header = SERIAL_HEADER.match(lines[0])
     if not header:
         raise InputError(path, "first line must be '# start_host_ns=<int>'", "line 1")
+    if int(header.group(1)) > MAX_HOST_NS:
+        raise InputError(path, f"start_host_ns={header.group(1)} is out of range (ns since 1970)", "line 1")
     times, counts, numbers, drops = [], [], [], Counter()
     ends_clean = data.endswith(b"\n")
     for number, text in enumerate(lines[1:], start=2):
-        if "\ufffd" in text:
+        if _GARBAGE.search(text):
             drops["garbage bytes"] += 1
             continue
         parsed = _parse_line(text)
