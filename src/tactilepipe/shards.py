@@ -21,6 +21,11 @@ from tactilepipe.errors import InputError
 GLOBAL_COLS = ["gfx", "gfy", "gfz", "gtx", "gty", "gtz"]
 AXES = "xyz"
 DEFAULT_POSE_TOPIC = "/tool_pose"
+# Plausibility bounds, orders of magnitude beyond what a PapillArray can measure (a pillar
+# deflects about 2 mm under tens of N). ROS1 bags carry no checksums: a corrupted float usually
+# lands far outside these bounds (a flipped exponent bit), which is how it is caught.
+MAX_ABS_FORCE_N = 1000.0
+MAX_ABS_DISP_MM = 100.0
 
 
 def sensor_topics(hub: int = 0) -> dict[str, int]:
@@ -32,6 +37,14 @@ def _check_stream(path: Path, topic: str, dec: dict) -> None:
     if bad.any():
         i = int(np.argmax(bad))
         raise InputError(path, "force values are NaN or inf", f"{topic} message {i}")
+    wild = ((np.abs(dec["force"]) > MAX_ABS_FORCE_N).any(axis=(1, 2))
+            | (np.abs(dec["global"][:, :3]) > MAX_ABS_FORCE_N).any(axis=1)
+            | ~np.isfinite(dec["disp"]).all(axis=(1, 2)) | (np.abs(dec["disp"]) > MAX_ABS_DISP_MM).any(axis=(1, 2)))
+    if wild.any():
+        i = int(np.argmax(wild))
+        raise InputError(path, f"implausible values (|force| > {MAX_ABS_FORCE_N:g} N or |displacement| > "
+                               f"{MAX_ABS_DISP_MM:g} mm, or non-finite displacement): a corrupt message?",
+                         f"{topic} message {i}")
     steps = np.diff(dec["stamp_ns"])
     if (steps <= 0).any():
         i = int(np.argmax(steps <= 0)) + 1

@@ -28,11 +28,38 @@ def preprocess(bgr: np.ndarray, size: int) -> np.ndarray:
     return cv2.resize(gray, (size, size), interpolation=cv2.INTER_AREA)
 
 
+# A DIGIT frame always shows its LEDs' gradient over the gel: a frame that is (almost) all black
+# (LEDs off, camera unplugged) or all white (over-exposed) carries no contact and is an error.
+DARK_LEVEL, BRIGHT_LEVEL = 10, 245      # gray levels
+BLANK_FRACTION = 0.95                   # of the (preprocessed) pixels
+
+
+def check_frame(bgr: np.ndarray, first_shape: tuple | None, where: str, name: str) -> None:
+    """InputError naming the frame unless it is BGR uint8 of the sensor's first frame's size."""
+    if bgr.ndim != 3 or bgr.shape[2] != 3 or bgr.dtype != np.uint8:
+        raise InputError(where, f"{name}: expected a 3-channel uint8 BGR frame, got {bgr.dtype} {bgr.shape}")
+    if first_shape is not None and bgr.shape != first_shape:
+        raise InputError(where, f"{name}: frame is {bgr.shape[1]}x{bgr.shape[0]}, the sensor's first frame is "
+                                f"{first_shape[1]}x{first_shape[0]}")
+
+
+def check_exposure(gray: np.ndarray, where: str, name: str) -> None:
+    """InputError naming the frame if it is (almost) all black or all white."""
+    if (gray <= DARK_LEVEL).mean() >= BLANK_FRACTION:
+        raise InputError(where, f"{name}: frame is all black (LEDs off or camera not streaming?)")
+    if (gray >= BRIGHT_LEVEL).mean() >= BLANK_FRACTION:
+        raise InputError(where, f"{name}: frame is saturated (all white: over-exposed?)")
+
+
 def _decode_sensor(frames, size: int, name: str) -> tuple[list[bytes], np.ndarray]:
     pngs, change = [], np.zeros(len(frames))
     first = None
     for i in range(len(frames)):
-        img = preprocess(frames.load(i), size)
+        bgr = frames.load(i)
+        check_frame(bgr, None if first is None else first_shape, frames.source[i], name)
+        first_shape = bgr.shape
+        img = preprocess(bgr, size)
+        check_exposure(img, frames.source[i], name)
         if first is None:
             first = img.astype(np.int16)
         change[i] = np.abs(img.astype(np.int16) - first).mean()
@@ -45,6 +72,12 @@ def _decode_sensor(frames, size: int, name: str) -> tuple[list[bytes], np.ndarra
 
 def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, max_offset_s: float = 1.0) -> dict:
     """Write the shard atomically; returns the trial's QC record (counts, clock offset found)."""
+    empty = [name for name, frames in raw.frames.items() if len(frames) == 0]
+    if empty or not raw.frames:
+        why = f" ({', '.join(f'{k} {v}' for k, v in raw.drops.items() if v)} dropped)" if any(raw.drops.values()) else ""
+        raise InputError(raw.source, f"no frames of {empty or 'any sensor'} to ingest{why}")
+    if len(raw.force_host_ns) == 0:
+        raise InputError(raw.source, "no force samples")
     decoded = {name: _decode_sensor(frames, image_size, name) for name, frames in raw.frames.items()}
     force_ns = raw.force_host_ns.astype(np.int64)
     force = np.asarray(raw.force_n, np.float64)
@@ -88,7 +121,18 @@ def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, max_offset_s
 
 
 def read_shard_info(shard: str | Path) -> dict:
-    meta = pq.read_schema(shard).metadata or {}
+    try:
+        meta = pq.read_schema(shard).metadata or {}
+    except FileNotFoundError:
+        raise InputError(shard, "shard not found") from None
+    except (OSError, pa.ArrowException) as exc:      # truncated, empty, not Parquet
+        raise InputError(shard, f"cannot read shard (truncated or not Parquet?): {exc}") from None
     if b"tactilepipe" not in meta:
         raise InputError(shard, "not a tool shard (no tactilepipe metadata)")
-    return json.loads(meta[b"tactilepipe"])
+    try:
+        info = json.loads(meta[b"tactilepipe"])
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(shard, f"corrupt tactilepipe metadata: {exc}") from None
+    if not isinstance(info, dict) or not {"kind", "image_size", "trial", "source"} <= set(info):
+        raise InputError(shard, "tactilepipe metadata lacks kind, image_size, trial or source")
+    return info

@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 from rosbags.typesys import Stores, get_typestore
 
-from tactilepipe.atomic import atomic_path
+from tactilepipe.atomic import atomic_path, remove_stale_temporaries
 from tactilepipe.errors import InputError
 from tactilepipe.tool.layout import TrialMeta
 from tactilepipe.tool.raw import SENSORS, RawTrial, SensorFrames
@@ -427,6 +427,7 @@ def _write_bag(target: Path, fmt: str, streams: list[tuple[str, str, np.ndarray,
     plugin = StoragePlugin.SQLITE3 if fmt == "ros2_sqlite3" else StoragePlugin.MCAP
     store = _typestore(True)
     target.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_temporaries(target)
     work = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
     try:
         bagdir = work / target.name          # storage files are named after the bag directory
