@@ -11,6 +11,8 @@ same numbers read from ``params["simulate_volume"]``, so both scenes describe on
   t = time since the bias request;
 - residual bias left by the bias request (per pillar and axis, drawn once per run: one bias);
 - white pillar noise (noise_std_n per pillar and axis);
+- viscoelastic creep of the pillars under the weight and the pillars' measuring range
+  (`tactilepipe.volume.viscoelastic`, `tactilepipe.volume.simulate.saturate`);
 - a tiny slow ambient wobble (room air-conditioning cycle), AMBIENT_WOBBLE_N.
 
 What "load" means when the weight is only on during recordings: the exponential factor is the
@@ -35,8 +37,9 @@ from tactilepipe import papillarray as pa
 from tactilepipe.bagio import write_bag
 from tactilepipe.drift import RUNS, parse_recording_name, recording_name
 from tactilepipe.errors import ConfigError
+from tactilepipe.volume import viscoelastic
 from tactilepipe.volume.simulate import (G, SESSION_EPOCH_S, minimum_jerk, normal_load_map,
-                                         pillar_offsets_mm)
+                                         pillar_offsets_mm, saturate)
 
 TOPIC = pa.sensor_topic(0, 0)
 FRAME_ID = "hub_0/sensor_0"
@@ -119,14 +122,17 @@ def simulate_recording(name: str, params: dict) -> dict:
     span_drift = sim["drift_per_kg_n"] / G * true[..., 2] * heating[:, None]      # (T, 9)
     ambient = AMBIENT_WOBBLE_N * np.sin(2 * np.pi * t_since_bias / AMBIENT_PERIOD_S + const["ambient_phase"])
 
-    measured = true + const["bias_residual"][None]
+    # the pillars creep under the weight (the lift simulator's viscoelastic model), then the errors
+    measured = viscoelastic.integrate_params(true, 1.0 / rate, sim) + const["bias_residual"][None]
     measured[..., 2] += span_drift + ((offset_drift + ambient) / 9.0)[:, None]
     measured += sim["noise_std_n"] * rng.standard_normal(measured.shape)
+    measured, saturated = saturate(measured, sim)
     stiffness = np.array([sim["pillar_tangential_stiffness_n_per_mm"]] * 2 + [sim["pillar_normal_stiffness_n_per_mm"]])
     return {"t": t, "run": run, "t_min": t_min, "load_n": total,
             "drift_n": thermal_drift_n(t_since_bias, total / G, sim),
             "force": measured.astype(np.float32), "disp": (measured / stiffness).astype(np.float32),
-            "in_contact": true[..., 2] > CONTACT_THRESHOLD_N}
+            "in_contact": true[..., 2] > CONTACT_THRESHOLD_N, "true_force": true,
+            "saturated_samples": int(saturated.any(axis=(1, 2)).sum())}
 
 
 def recording_start_ns(run: str, t_min: int) -> int:

@@ -10,8 +10,11 @@ Physics (REFERENCE.md section 4), per 500 Hz sample:
   proportion to their tangential stiffness; a small grasp tilt puts part of it on x.
 - Friction: each pillar sticks while |f_t| <= mu_s f_z and slides at mu_k f_z otherwise (an exact
   active-set solve per sample), so lightly loaded outer pillars slip first.
-- Measurement: pillar noise, residual bias after the driver's bias request, thermal drift
-  dF(t) = dF_inf (1 - exp(-t / tau)) since the last bias (growing with the carried load).
+- Measurement: viscoelastic creep of the silicone pillars (`viscoelastic.py`: the reading lags
+  load changes and creeps to them; a stiff ODE, integrated exactly between samples by default),
+  pillar noise, residual bias after the driver's bias request, thermal drift
+  dF(t) = dF_inf (1 - exp(-t / tau)) since the last bias (growing with the carried load), and the
+  pillar's measuring range (readings beyond it are clipped to it and counted, never NaN).
 Nothing here writes the volume or the off-table interval into the bag; labels go to lifts.csv.
 """
 
@@ -27,6 +30,7 @@ from tactilepipe import papillarray as pa
 from tactilepipe.atomic import write_text
 from tactilepipe.bagio import write_bag
 from tactilepipe.errors import InputError
+from tactilepipe.volume import viscoelastic
 
 G = 9.81
 SESSION_EPOCH_S = 1_767_225_600  # 2026-01-01T00:00:00Z: simulated sessions start here
@@ -215,14 +219,16 @@ def simulate_lift(lift: Lift, sim: dict, seed: int) -> dict:
         gross |= g
         force[:, s, :, :2], force[:, s, :, 2] = ft, fz
 
-    # Measurement: bias residual, thermal drift since the block's bias request, white noise.
+    # Measurement: viscoelastic creep of the pillars (the reading lags the load), bias residual,
+    # thermal drift since the block's bias request, white noise, and the sensor's range.
     t_since_bias = lift.index * sim["lift_cycle_s"] + tl.t
     drift_inf = sim["drift_inf_n"] + sim["drift_per_kg_n"] * carried / G
     drift = drift_inf * (1 - np.exp(-t_since_bias / sim["drift_tau_s"]))
-    measured = force.copy()
+    measured = viscoelastic.integrate_params(force, 1.0 / rate, sim)
     measured += sim["bias_residual_std_n"] * rng.standard_normal((1, 2, 9, 3))
     measured[..., 2] += (drift / 9.0)[:, None, None]
     measured += sim["noise_std_n"] * rng.standard_normal(measured.shape)
+    measured, saturated = saturate(measured, sim)
 
     stiffness = np.array([k_t, k_t, k_n])
     in_contact = force[..., 2] > 0.05
@@ -231,7 +237,22 @@ def simulate_lift(lift: Lift, sim: dict, seed: int) -> dict:
     return {"t": tl.t, "force": measured.astype(np.float32), "disp": (measured / stiffness).astype(np.float32),
             "in_contact": in_contact, "slip": slip, "pose_t": pose_t, "pose_z": pose_z,
             "off_table": (carried >= mass * (G + tl.acc) - 1e-12) & (tl.z > 0), "gross_slip": gross,
-            "phases": tl.phases}
+            "phases": tl.phases, "true_force": force, "saturated": saturated,
+            "saturated_samples": int(saturated.any(axis=(1, 2, 3)).sum())}
+
+
+def saturate(measured: np.ndarray, sim: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Clip readings (..., 3) to the pillar's measuring range and flag what was clipped.
+
+    The PapillArray measures each pillar tip's displacement and reports force through its
+    stiffness; a tip beyond the tracked travel (``pillar_travel_mm``) reads as the travel's edge:
+    +-k_t travel on fX, fY and +-k_n travel on fZ. Returns the clipped readings and a same-shape
+    mask of the saturated values (a reading at the limit, never NaN)."""
+    travel = sim.get("pillar_travel_mm", np.inf)
+    limit = travel * np.array([sim["pillar_tangential_stiffness_n_per_mm"]] * 2
+                              + [sim["pillar_normal_stiffness_n_per_mm"]], float)
+    clipped = np.clip(measured, -limit, limit)
+    return clipped, np.abs(measured) >= limit
 
 
 def lift_start_ns(lift: Lift, sim: dict) -> int:
