@@ -1,4 +1,10 @@
-"""Study 001's algebraic baseline: est_vol = 1000 (Fy + mu Fz) / G - m_cont, mu swept per fold."""
+"""Study 001's algebraic baseline: est_vol = 1000 (Fy + mu Fz) / G - m_cont, mu swept per fold.
+
+An optimum on the first or last swept mu is flagged (``on_edge`` per fold, a note saying which
+edge, and ``warnings``): the curve may still be rising there. A training fold whose volumes are
+all equal has no optimum (R² undefined for every mu): its mu_opt is NaN with the reason, and mu*
+is the mean of the folds that have one (NaN if none does) - no exception.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +13,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from tactilepipe.metrics import r2_score
+from tactilepipe.metrics import r2_detail, r2_score
 
 
 def estimate_volume(fy, fz, mu: float, gravity: float, container_mass_g: float) -> np.ndarray:
@@ -25,11 +31,18 @@ def sweep(data: pd.DataFrame, folds: list[dict], sensor: int, p: dict) -> dict:
         train = data["lift"].isin(fold["train"]).to_numpy()
         r2 = np.array([r2_score(y[train], estimate_volume(fy[train], fz[train], mu, p["gravity"],
                                                           p["container_mass_g"])) for mu in mus])
-        k = int(np.nanargmax(r2))
-        optima.append({"fold": fold["fold"], "mu_opt": float(mus[k]), "r2_train": float(r2[k]),
-                       "on_edge": k in (0, len(mus) - 1)})
+        if np.isnan(r2).all():      # constant training volumes (one class): R² is undefined everywhere
+            reason = r2_detail(y[train], y[train])[1] or "undefined"
+            optima.append({"fold": fold["fold"], "mu_opt": float("nan"), "r2_train": float("nan"),
+                           "on_edge": False, "note": f"no optimum: R² {reason}"})
+        else:
+            k = int(np.nanargmax(r2))
+            edge = k in (0, len(mus) - 1)
+            optima.append({"fold": fold["fold"], "mu_opt": float(mus[k]), "r2_train": float(r2[k]),
+                           "on_edge": edge, "note": edge_note(mus[k], p) if edge else ""})
         curves.append(pd.DataFrame({"fold": fold["fold"], "mu": mus, "r2_train": r2}))
-    mu_star = float(np.mean([o["mu_opt"] for o in optima]))
+    found = [o["mu_opt"] for o in optima if np.isfinite(o["mu_opt"])]
+    mu_star = float(np.mean(found)) if found else float("nan")
     fit_s = (time.perf_counter() - t0) / len(folds)
     preds, summary = [], []
     for fold in folds:
@@ -37,12 +50,22 @@ def sweep(data: pd.DataFrame, folds: list[dict], sensor: int, p: dict) -> dict:
         t0 = time.perf_counter()
         est = estimate_volume(fy[test], fz[test], mu_star, p["gravity"], p["container_mass_g"])
         predict_us = (time.perf_counter() - t0) / max(1, test.sum()) * 1e6
-        summary.append({"fold": fold["fold"], "r2": r2_score(y[test], est), "fit_s": fit_s,
+        r2, reason = r2_detail(y[test], est)
+        summary.append({"fold": fold["fold"], "r2": r2, "r2_note": reason or "", "fit_s": fit_s,
                         "predict_us_per_sample": predict_us})
         part = data.loc[test, ["lift", "volume_ml"]].copy()
         part["pred_ml"] = est
         part.insert(0, "set", "test")
         part.insert(0, "fold", fold["fold"])
         preds.append(part)
-    return {"mu_star": mu_star, "optima": pd.DataFrame(optima), "curve": pd.concat(curves, ignore_index=True),
-            "predictions": pd.concat(preds, ignore_index=True), "summary": pd.DataFrame(summary)}
+    optima = pd.DataFrame(optima)
+    return {"mu_star": mu_star, "optima": optima, "curve": pd.concat(curves, ignore_index=True),
+            "predictions": pd.concat(preds, ignore_index=True), "summary": pd.DataFrame(summary),
+            "on_edge": bool(optima["on_edge"].any()), "warnings": [n for n in optima["note"] if n]}
+
+
+def edge_note(mu: float, p: dict) -> str:
+    """Why an optimum on the edge of the sweep is not an optimum: the true one may lie beyond."""
+    side = "lower" if np.isclose(mu, p["mu_min"]) else "upper"
+    return (f"mu optimum {mu:.4g} on the {side} edge of the swept range [{p['mu_min']:g}, {p['mu_max']:g}]: "
+            f"the R² maximum may lie beyond it (widen baseline.mu_min/mu_max)")

@@ -38,13 +38,20 @@ def r2_bars(r2: dict, out: Path) -> None:
     close(fig)
 
 
-def mu_curves(curve: pd.DataFrame, optima: pd.DataFrame, mu_star: float, out: Path) -> None:
+def mu_curves(curve: pd.DataFrame, optima: pd.DataFrame, mu_star: float, out: Path,
+              warning: str | None = None) -> None:
+    """mu-R² curve per training fold with its optimum (a ring when on the sweep's edge) and mu*."""
     fig, ax = figure(4.8, 3.2)
     for fold, part in curve.groupby("fold"):
         line, = ax.plot(part["mu"], part["r2_train"], lw=1.2, label=f"d{fold + 1} train")
         opt = optima[optima["fold"] == fold].iloc[0]
-        ax.plot(opt["mu_opt"], opt["r2_train"], "o", color=line.get_color(), ms=4)
-    ax.axvline(mu_star, color="k", ls="--", lw=1, label=f"μ* = {mu_star:.3f}")
+        edge = bool(opt.get("on_edge", False))
+        ax.plot(opt["mu_opt"], opt["r2_train"], "o", color=line.get_color(), ms=7 if edge else 4,
+                mfc="none" if edge else line.get_color())
+    if np.isfinite(mu_star):
+        ax.axvline(mu_star, color="k", ls="--", lw=1, label=f"μ* = {mu_star:.3f}")
+    if warning:
+        ax.text(0.02, 0.02, f"⚠ {warning}", transform=ax.transAxes, fontsize=8, color="#b30000")
     ax.set_xlabel("friction coefficient μ")
     ax.set_ylabel("R² of est_vol on the training fold")
     ax.set_title("Algebraic baseline: μ sweep per training fold")

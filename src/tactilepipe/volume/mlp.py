@@ -18,6 +18,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tactilepipe.errors import TactilepipeError
+
+_ROUND_OFF = 16 * np.finfo(np.float64).eps     # relative spread below which a column is constant
+
+
+class MLPDivergedError(TactilepipeError, FloatingPointError):
+    """The training loss became NaN or inf; the message names the epoch, batch and restart."""
+
 
 @dataclass
 class MLPConfig:
@@ -44,6 +52,7 @@ class MLPRegressor:
     loss_curve: list = field(default_factory=list)
     n_iter: int = 0
     converged: bool = False
+    constant_target: bool = False     # fitted on one label value: predicts it, R² is undefined
 
     def fit(self, x: np.ndarray, y: np.ndarray) -> "MLPRegressor":
         x = np.asarray(x, np.float64)
@@ -51,15 +60,28 @@ class MLPRegressor:
         if x.ndim != 2 or len(x) != len(y) or len(y) == 0:
             raise ValueError(f"fit needs x (n, d) and y (n,), got {x.shape} and {y.shape}")
         if not (np.isfinite(x).all() and np.isfinite(y).all()):
-            raise ValueError("fit: inputs or targets contain NaN or inf")
+            rows = np.flatnonzero(~(np.isfinite(x).all(axis=1) & np.isfinite(y)))
+            raise ValueError(f"fit: inputs or targets contain NaN or inf ({len(rows)} samples, first rows "
+                             f"{rows[:5].tolist()})")
         cfg = self.config
         # each restart has its own initialisation stream (restart 0 is the restarts=1 network);
         # the minibatch order has another
         inits = [np.random.default_rng(np.random.SeedSequence([self.seed, k])) for k in range(max(1, cfg.restarts))]
         rng = np.random.default_rng(np.random.SeedSequence([self.seed, 2**31]))
+        # standardise with training statistics; a column constant up to its float round-off (its
+        # "spread" is rounding noise) is only centred, so a constant target gives a constant model
         self.x_mean, self.x_std = x.mean(0), x.std(0)
-        self.x_std[self.x_std == 0] = 1.0
-        self.y_mean, self.y_std = y.mean(), y.std() or 1.0
+        self.x_std[self.x_std <= _ROUND_OFF * np.abs(x).max(0)] = 1.0
+        self.y_mean, self.y_std = y.mean(), y.std()
+        if self.y_std <= _ROUND_OFF * np.abs(y).max():
+            # one class / a constant label: the least-squares model is that constant; training a
+            # network on rounding noise would only add its random initial outputs to it
+            d, h = x.shape[1], cfg.hidden_units
+            self.y_std = 1.0
+            self.weights = [np.zeros((d, h)), np.zeros((1, h)), np.zeros((h, 1)), np.zeros((1, 1))]
+            self.loss_curve, self.n_iter, self.converged, self.constant_target = [], 0, True, True
+            return self
+        self.constant_target = False
         xs = (x - self.x_mean) / self.x_std
         ys = ((y - self.y_mean) / self.y_std)[:, None]
         n, d = xs.shape
@@ -83,15 +105,24 @@ class MLPRegressor:
             xp, yp = xs[order], ys[order]
             total = np.zeros(r)
             gate = active[:, None, None].astype(np.float64)
-            for start in range(0, n, batch):
+            for b, start in enumerate(range(0, n, batch), start=1):
                 xb, yb = xp[start:start + batch], yp[start:start + batch]
                 nb = len(xb)
                 w1, c1, w2, c2 = params
-                z = xb @ w1 + c1                       # (r, nb, h)
-                a = np.maximum(z, 0.0)
-                err = a @ w2 + c2 - yb                 # (r, nb, 1)
-                total += 0.5 * (err ** 2).sum(axis=(1, 2)) + 0.5 * cfg.alpha * (
-                    (w1 ** 2).sum(axis=(1, 2)) + (w2 ** 2).sum(axis=(1, 2)))
+                with np.errstate(over="ignore", invalid="ignore"):   # checked just below
+                    z = xb @ w1 + c1                       # (r, nb, h)
+                    a = np.maximum(z, 0.0)
+                    err = a @ w2 + c2 - yb                 # (r, nb, 1)
+                    batch_loss = 0.5 * (err ** 2).sum(axis=(1, 2)) + 0.5 * cfg.alpha * (
+                        (w1 ** 2).sum(axis=(1, 2)) + (w2 ** 2).sum(axis=(1, 2)))
+                bad = active & ~np.isfinite(batch_loss)
+                if bad.any():
+                    k = int(np.argmax(bad))
+                    raise MLPDivergedError(
+                        f"MLP training stopped: non-finite loss ({batch_loss[k]}) at epoch {epoch + 1}, "
+                        f"batch {b} of {-(-n // batch)} (restart {k + 1} of {r}); inputs and targets are "
+                        f"finite, so the weights diverged (learning_rate {cfg.learning_rate:g} too large?)")
+                total += batch_loss
                 g_out = err / nb
                 g_w2 = a.transpose(0, 2, 1) @ g_out + cfg.alpha * w2 / nb
                 g_c2 = g_out.sum(axis=1, keepdims=True)
@@ -109,8 +140,6 @@ class MLPRegressor:
                     p -= gate * lr * mi / (np.sqrt(vi) + eps)
             loss = total / n
             for k in np.flatnonzero(active):
-                if not np.isfinite(loss[k]):
-                    raise FloatingPointError(f"MLP training diverged at epoch {epoch + 1} (loss {loss[k]})")
                 curves[k].append(float(loss[k]))
                 stall[k] = stall[k] + 1 if loss[k] > best[k] - cfg.tol else 0
                 best[k] = min(best[k], loss[k])

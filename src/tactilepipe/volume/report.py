@@ -10,13 +10,42 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from tactilepipe.atomic import write_json
+from tactilepipe.metrics import R2_CONSTANT, format_metric
 from tactilepipe.tables import write_table
 from tactilepipe.volume import figures
 
 
 def _summary(folds: pd.DataFrame) -> dict:
-    return {"mean": float(folds["r2"].mean()), "std": float(folds["r2"].std(ddof=0)),
-            "folds": [float(v) for v in folds["r2"]]}
+    """Mean and std of R² over the folds where it is defined, and how many folds it is not."""
+    r2 = folds["r2"].to_numpy(np.float64)
+    ok = np.isfinite(r2)
+    return {"mean": float(r2[ok].mean()) if ok.any() else float("nan"),
+            "std": float(r2[ok].std()) if ok.any() else float("nan"),
+            "folds": [float(v) for v in r2], "undefined_folds": int((~ok).sum())}
+
+
+def _r2_text(s: dict) -> str:
+    """Table 1's cell: "mean ± std", or "undefined" with how many folds have no R²."""
+    n = len(s["folds"])
+    if s["undefined_folds"] == n:
+        return f"undefined ({R2_CONSTANT.split(': ', 1)[1]} in all {n} folds)"
+    text = f"{format_metric(s['mean'])} ± {format_metric(s['std'])}"
+    return text + (f" ({s['undefined_folds']} of {n} folds undefined)" if s["undefined_folds"] else "")
+
+
+def _json_safe(x):
+    """NaN/inf -> None so metrics.json stays strict JSON ("undefined" has a reason elsewhere)."""
+    if isinstance(x, dict):
+        return {k: _json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_json_safe(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if np.isfinite(x) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
 
 
 def _peak_pillar_forces(shard: Path) -> tuple[np.ndarray, float]:
@@ -34,13 +63,20 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
     fold_tables = {m: pd.read_csv(res / "mlp" / m / "folds.csv") for m in modalities}
     fold_tables["baseline"] = pd.read_csv(res / "baseline" / "folds.csv")
     r2 = {m: _summary(t) for m, t in fold_tables.items()}
-    best = max(modalities, key=lambda m: r2[m]["mean"])
+    best = max(modalities, key=lambda m: r2[m]["mean"] if np.isfinite(r2[m]["mean"]) else -np.inf)
     mu = json.loads((res / "baseline" / "mu.json").read_text())
+    mu_edge = [o for o in mu["optima"] if o.get("on_edge")]
+    mu_notes = [o["note"] for o in mu["optima"] if o.get("note")]
     preds = pd.read_parquet(res / "mlp" / best / "predictions.parquet")
 
     # Table 1 and the run-time table
-    table1 = pd.DataFrame([{"method": figures.label(m).replace("\n", " "),
-                            "R² (mean ± std)": f"{r2[m]['mean']:.4f} ± {r2[m]['std']:.4f}",
+    def method_label(m: str) -> str:
+        text = figures.label(m).replace("\n", " ")
+        if m == "baseline" and mu_edge:
+            text += f" [mu optimum on the sweep edge in {len(mu_edge)} of {len(mu['optima'])} folds]"
+        return text
+
+    table1 = pd.DataFrame([{"method": method_label(m), "R² (mean ± std)": _r2_text(r2[m]),
                             "r2_mean": r2[m]["mean"], "r2_std": r2[m]["std"]} for m in r2])
     runtime = pd.DataFrame([{"method": m, "r2_mean": r2[m]["mean"], "r2_std": r2[m]["std"],
                              "fit_s": float(t["fit_s"].mean()),
@@ -69,7 +105,8 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
     figs = res / "figures"
     figures.r2_bars(r2, figs / "r2_by_modality.png")
     curve = pd.read_csv(res / "baseline" / "mu_curve.csv")
-    figures.mu_curves(curve, pd.DataFrame(mu["optima"]), mu["mu_star"], figs / "mu_r2_curve.png")
+    figures.mu_curves(curve, pd.DataFrame(mu["optima"]), mu["mu_star"], figs / "mu_r2_curve.png",
+                      warning="optimum on the edge of the swept range" if mu_edge else None)
     per_lift = preds.groupby(["set", "fold", "lift", "volume_ml"])["pred_ml"].mean().reset_index()
     figures.true_vs_estimated(per_lift, best, figs / "true_vs_estimated.png")
     figures.runtime_scatter(runtime, figs / "error_vs_runtime.png")
@@ -84,7 +121,10 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
         "r2": {m: {"mean": v["mean"], "std": v["std"]} for m, v in r2.items()},
         "r2_folds": {m: v["folds"] for m, v in r2.items()},
         "mu_star": mu["mu_star"],
-        "mu_optimum_on_edge": any(o["on_edge"] for o in mu["optima"]),
+        "mu_optimum_on_edge": bool(mu_edge),
+        "mu_warnings": mu_notes,
+        "r2_undefined": {m: f"{v['undefined_folds']} of {len(v['folds'])} folds: {R2_CONSTANT}"
+                         for m, v in r2.items() if v["undefined_folds"]},
         "best_modality": best,
         "modality_order": ordering,
         "unseen_ml": {f"{v:g}": float(e) for v, e in zip(unseen_table["true_ml"], unseen_table["estimated_ml"])},
@@ -94,5 +134,6 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
         "grid_best": grid.iloc[0][["hidden_units", "alpha", "learning_rate", "r2_mean"]].to_dict(),
         "scale": p["scale"],
     }
+    metrics = _json_safe(metrics)
     write_json(res / "metrics.json", metrics)
     return metrics

@@ -251,3 +251,78 @@ def step_response(t: np.ndarray, prony: Prony) -> np.ndarray:
     coef = np.linalg.solve(vec, -s_inf)
     s = s_inf[None, :] + np.real((vec[None, :, :] * (coef * np.exp(np.outer(t, lam)))[:, None, :]).sum(-1))
     return prony.g_inf + s @ g
+
+
+# --- integrator benchmark: error against run time ------------------------------------------------
+
+def benchmark_load(t: np.ndarray, grip_n: float = 2.0, tap_n: float = 1.0) -> np.ndarray:
+    """Test load of one pillar (N): the gripper closes over 0.6 s (the lift simulator's grip ramp),
+    then a 20-ms minimum-jerk load step (a quick tap / weight set down) at 1.5 s, held."""
+    def mj(x):
+        x = np.clip(x, 0.0, 1.0)
+        return 10 * x**3 - 15 * x**4 + 6 * x**5
+    return grip_n * mj((t - 0.3) / 0.6) + tap_n * mj((t - 1.5) / 0.02)
+
+
+def reference_reading(prony: Prony, duration_s: float, h_ref: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """(t, reading) of ``benchmark_load`` by the exponential integrator on a 1-us grid (the load
+    evaluated exactly there; its linear interpolation error is below 1e-8 N at this step)."""
+    n = int(round(duration_s / h_ref)) + 1
+    t = np.arange(n) * h_ref
+    return t, integrate(benchmark_load(t), h_ref, prony, "exponential")
+
+
+def benchmark(prony: Prony, rates_hz=(100, 250, 500, 1000), substeps=(1, 2, 4, 8, 16),
+              duration_s: float = 3.0, channels: int = 54, repeats: int = 3, methods=METHODS):
+    """Error against run time of every integrator and step size, against the fine-step reference.
+
+    Per (method, sample rate, substeps): max and RMS |reading - reference| at the samples (N; the
+    reference solves the continuous load, so this includes the error of knowing the load only at
+    the samples), ``integration_error_n``: max error against the exact solution for the sampled
+    load taken linear between samples (the integrator's own error; the exponential integrator's is
+    round-off), whether the step is within the method's stability limit, whether it diverged, and the wall time
+    of one simulated lift's worth of channels (``channels`` pillar axes over ``duration_s``) stepped
+    in Python (``loop_ms``, every method timed the same way) and by the simulator's modal
+    recursion (``modal_ms``). Returns a pandas DataFrame.
+    """
+    import time
+
+    import pandas as pd
+
+    t_ref, r_ref = reference_reading(prony, duration_s)
+    h_ref = t_ref[1] - t_ref[0]
+    rows = []
+    for rate in rates_hz:
+        dt = 1.0 / rate
+        n = int(round(duration_s * rate)) + 1
+        t = np.arange(n) * dt
+        ref = r_ref[np.rint(t / h_ref).astype(np.int64)]
+        load = benchmark_load(t)
+        many = np.repeat(load[:, None], channels, axis=1)
+        exact = integrate(load, dt, prony, "exponential", 1)
+        for method in methods:
+            limit = stability_limit_s(prony, method)
+            for k in substeps:
+                reading = integrate(load, dt, prony, method, k, check_stability=False)
+                err = np.abs(reading - ref)
+                diverged = (not np.isfinite(err).all()) or err.max() > 1e3 * np.abs(load).max()
+                timings = {}
+                for name, loop in (("loop_ms", True), ("modal_ms", False)):
+                    integrate(many[:3], dt, prony, method, k, check_stability=False, loop=loop)  # warm-up
+                    best = np.inf
+                    for _ in range(repeats):
+                        t0 = time.perf_counter()
+                        integrate(many, dt, prony, method, k, check_stability=False, loop=loop)
+                        best = min(best, time.perf_counter() - t0)
+                        if best > 1.0:
+                            break
+                    timings[name] = best * 1e3
+                rows.append({"method": method, "rate_hz": int(rate), "substeps": int(k),
+                             "step_ms": dt / k * 1e3, "within_stability_limit": bool(dt / k <= limit),
+                             "diverged": bool(diverged),
+                             "max_error_n": float("inf") if diverged else float(err.max()),
+                             "rms_error_n": float("inf") if diverged else float(np.sqrt(np.mean(err**2))),
+                             "integration_error_n": float("inf") if diverged
+                             else float(np.abs(reading - exact).max()),
+                             **timings})
+    return pd.DataFrame(rows)
