@@ -14,6 +14,8 @@ class InputError(TactilepipeError):
 
     def __init__(self, path: str | Path, problem: str, record: str | int | None = None):
         self.path = str(path)
+        # one line, whatever a library put in its message (YAML and Arrow errors span several)
+        problem = " / ".join(line.strip() for line in str(problem).splitlines() if line.strip())
         self.problem = problem
         self.record = record
         where = self.path if record is None else f"{self.path} [{record}]"
