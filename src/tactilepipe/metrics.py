@@ -34,12 +34,20 @@ def r2_detail(y_true, y_pred) -> tuple[float, str | None]:
         raise ValueError(f"r2: {len(y_true)} true values but {len(y_pred)} predictions")
     if len(y_true) == 0:
         return float("nan"), R2_EMPTY
-    if not (np.isfinite(y_true).all() and np.isfinite(y_pred).all()):
+    if not np.isfinite(y_true).all():
         return float("nan"), R2_NONFINITE
+    # R² is scale-free: work in units of max |y_true| so that squares of labels near 1e-300 or
+    # 1e+300 neither underflow to 0 nor overflow to inf
+    scale = float(np.abs(y_true).max()) or 1.0
+    y_true = y_true / scale
     ss_tot = float(((y_true - y_true.mean()) ** 2).sum())
     if _ss_tot_is_zero(y_true, ss_tot):
         return float("nan"), R2_CONSTANT
-    return 1.0 - float(((y_true - y_pred) ** 2).sum()) / ss_tot, None
+    if not np.isfinite(y_pred).all():
+        return float("nan"), R2_NONFINITE
+    with np.errstate(over="ignore"):
+        ss_res = float(((y_true - y_pred / scale) ** 2).sum())
+    return 1.0 - ss_res / ss_tot, None
 
 
 def r2_score(y_true, y_pred) -> float:
