@@ -194,6 +194,11 @@ def _empty_sensor_arrays() -> dict[str, np.ndarray]:
             "global": np.zeros((0, 6), np.float32)}
 
 
+def _ros1_sec(sec: int) -> int:
+    """ROS1 time is uint32 seconds; rosbags reads them as int32 (negative after January 2038)."""
+    return int(sec) & 0xFFFF_FFFF
+
+
 def _decode_generic(raws: list[bytes]) -> dict[str, np.ndarray]:
     store = typestore()
     out = {k: [] for k in _empty_sensor_arrays()}
@@ -204,7 +209,7 @@ def _decode_generic(raws: list[bytes]) -> dict[str, np.ndarray]:
             raise ValueError(f"record {i}: cannot decode SensorState ({type(exc).__name__}: {exc})") from None
         if len(msg.pillars) != N_PILLARS:
             raise ValueError(f"record {i}: SensorState has {len(msg.pillars)} pillars, expected {N_PILLARS}")
-        out["stamp_ns"].append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        out["stamp_ns"].append(_ros1_sec(msg.header.stamp.sec) * 1_000_000_000 + msg.header.stamp.nanosec)
         out["tus"].append(msg.tus)
         out["force"].append([(p.fX, p.fY, p.fZ) for p in msg.pillars])
         out["disp"].append([(p.dX, p.dY, p.dZ) for p in msg.pillars])
@@ -231,6 +236,6 @@ def decode_pose_stamped(raws: list[bytes]) -> tuple[np.ndarray, np.ndarray]:
             msg = store.deserialize_ros1(raw, POSE_STAMPED)
         except Exception as exc:
             raise ValueError(f"record {i}: cannot decode PoseStamped ({type(exc).__name__}: {exc})") from None
-        stamps.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        stamps.append(_ros1_sec(msg.header.stamp.sec) * 1_000_000_000 + msg.header.stamp.nanosec)
         pos.append((msg.pose.position.x, msg.pose.position.y, msg.pose.position.z))
     return np.asarray(stamps, np.int64), np.asarray(pos, float)
