@@ -124,11 +124,28 @@ def tool_raw_inputs(kind):
             for f in tool_trial_input(type("W", (), {"session": s, "trial": name})())]
 
 
-def tool_targets(scene):
-    return [f"results/{scene}/qc.md", f"results/{scene}/figures/pressing_strip.png",
-            f"results/{scene}/figures/rmse_vs_force.png", f"results/{scene}/figures/force_profiles.png",
-            f"results/{scene}/figures/force_histogram.png"] + \
+TOOL_DATA_FIGURES = ["force_histogram", "force_profiles", "rmse_vs_force", "pressing_strip"]
+TOOL_MODEL_FIGURES = ["sorted_predictions", "over_time", "per_tool", "window_heatmap", "regression",
+                      "error_vs_runtime"]
+TOOL_MODEL_TABLES = ["variants", "per_tool", "per_window", "runtime"]
+
+
+def tool_data_targets(scene):
+    """QC report, data figures and every split of a tool scene (no model)."""
+    return [f"results/{scene}/qc.md"] + \
+        [f"results/{scene}/figures/{fig}.png" for fig in TOOL_DATA_FIGURES] + \
         [f"results/{scene}/splits/{split}.json" for split in ("frame", "trial", "loto", "lopo")]
+
+
+def tool_model_targets(scene):
+    """Metrics, tables and figures of every trained model run of a tool scene."""
+    return [f"results/{scene}/metrics.json"] + \
+        [f"results/{scene}/tables/{t}.md" for t in TOOL_MODEL_TABLES] + \
+        [f"results/{scene}/figures/{fig}.png" for fig in TOOL_MODEL_FIGURES]
+
+
+def tool_targets(scene):
+    return tool_data_targets(scene) + tool_model_targets(scene)
 
 
 def scene_targets(scenes):

@@ -4,7 +4,6 @@
 
 TOOL_TARGETS = {"tool_normal": ("normal", "normal"), "tool_shear": ("shear", "shear")}
 TOOL_SPLITS = ["frame", "trial", "loto", "lopo"]
-MODEL_FIGURES = ["sorted_predictions", "over_time", "per_tool", "window_heatmap", "regression", "error_vs_runtime"]
 
 
 rule simulate_tool:
@@ -83,8 +82,7 @@ rule tool_data_report:
         raw=lambda w: tool_raw_inputs(TOOL_TARGETS[w.scene][0]),
     output:
         qc="results/{scene}/qc.md",
-        figures=expand("results/{{scene}}/figures/{fig}.png",
-                       fig=["force_histogram", "force_profiles", "rmse_vs_force", "pressing_strip"]),
+        figures=expand("results/{{scene}}/figures/{fig}.png", fig=TOOL_DATA_FIGURES),
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     params:
@@ -93,6 +91,13 @@ rule tool_data_report:
         f"{LOGS}/{{scene}}/data_report.log",
     shell:
         "{CLI} report {wildcards.scene} {PARAMS_ARGS} --in-dir results/{wildcards.scene} 2> {log}"
+
+
+rule tool_data:
+    # the data stages of both tool scenes, without models (DVC stage tool_data)
+    localrule: True
+    input:
+        tool_data_targets("tool_normal") + tool_data_targets("tool_shear"),
 
 
 # --- models (issue: tool-force scene, part 2) --------------------------------------------------
@@ -154,8 +159,8 @@ rule tool_model_report:
         data=rules.tool_dataset.output,
     output:
         metrics="results/{scene}/metrics.json",
-        tables=expand("results/{{scene}}/tables/{t}.md", t=["variants", "per_tool", "per_window", "runtime"]),
-        figures=expand("results/{{scene}}/figures/{fig}.png", fig=MODEL_FIGURES),
+        tables=expand("results/{{scene}}/tables/{t}.md", t=TOOL_MODEL_TABLES),
+        figures=expand("results/{{scene}}/figures/{fig}.png", fig=TOOL_MODEL_FIGURES),
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     params:

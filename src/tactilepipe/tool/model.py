@@ -80,7 +80,7 @@ class GAM(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         att = self.channel(x.permute(0, 2, 3, 1)).permute(0, 3, 1, 2)   # per pixel over channels
-        x = x * att
+        x = x * torch.sigmoid(att)
         return x * torch.sigmoid(self.spatial(x))
 
 
@@ -208,6 +208,14 @@ def _kaiming_init(model: nn.Module) -> None:
         elif isinstance(m, nn.BatchNorm2d):
             nn.init.ones_(m.weight)
             nn.init.zeros_(m.bias)
+    # Start as a calm function: each residual block as the identity (its last BN scaled to 0, as
+    # torchvision's zero_init_residual) and the force output at 0. With Kaiming on every layer the
+    # untrained model's outputs spread ~1 (in units of the whole label range) from frame to frame,
+    # and Adam at 2e-4 spends hundreds of steps unlearning that noise before it learns the force.
+    for m in model.modules():
+        if isinstance(m, (BasicBlock, Bottleneck)):
+            nn.init.zeros_((m.bn2 if isinstance(m, BasicBlock) else m.bn3).weight)
+    nn.init.zeros_(model.head[-1].weight)
 
 
 def check_image_size(image_size: int) -> None:
