@@ -44,8 +44,14 @@ LOCKED = "Directory cannot be locked"
 TIMING_FIELDS = {"train_s", "latency_ms", "predict_s"}
 
 
+def env_of(wd: Path) -> dict:
+    """Each folder runs its own copy of the package (copied with the project), so the reference
+    and the faulted runs use the same code even while the working tree is being edited."""
+    return {**ENV, "PYTHONPATH": str(wd / "src")}
+
+
 def smk(wd: Path, *args: str, check: bool = True) -> subprocess.CompletedProcess:
-    proc = subprocess.run([str(BIN / "snakemake"), "--cores", "2", *PROFILE, *args], cwd=wd, env=ENV,
+    proc = subprocess.run([str(BIN / "snakemake"), "--cores", "2", *PROFILE, *args], cwd=wd, env=env_of(wd),
                           capture_output=True, text=True)
     if check and proc.returncode != 0:
         raise AssertionError(f"snakemake {' '.join(args)} failed ({proc.returncode}):\n"
@@ -56,7 +62,7 @@ def smk(wd: Path, *args: str, check: bool = True) -> subprocess.CompletedProcess
 def start(wd: Path, *args: str) -> subprocess.Popen:
     """Snakemake in its own process group (so the whole group, jobs included, can be killed)."""
     log = open(wd / "background.out", "w")
-    return subprocess.Popen([str(BIN / "snakemake"), "--cores", "2", *PROFILE, *args], cwd=wd, env=ENV,
+    return subprocess.Popen([str(BIN / "snakemake"), "--cores", "2", *PROFILE, *args], cwd=wd, env=env_of(wd),
                             stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
 
 
@@ -209,8 +215,9 @@ def tmpfs(path: Path, size: str):
         subprocess.run(["umount", "-l", str(path)], check=False)
 
 
-def cli(args: list[str], preexec=None, prefix: list[str] | None = None) -> subprocess.CompletedProcess:
-    env = {**ENV, "PYTHONDONTWRITEBYTECODE": "1"}
+def cli(args: list[str], preexec=None, prefix: list[str] | None = None, env: dict | None = None
+        ) -> subprocess.CompletedProcess:
+    env = {**(env or ENV), "PYTHONDONTWRITEBYTECODE": "1"}
     return subprocess.run([*(prefix or []), *CLI, *args], env=env, capture_output=True, text=True,
                           preexec_fn=preexec)
 
@@ -244,7 +251,7 @@ def test_full_disk_memory_mapped_dataset_is_an_error_not_sigbus(tmp_path, refere
     with tmpfs(tmp_path / "small", "64k") as mnt:
         out = mnt / "data"
         proc = cli(["tool-dataset", "--params", str(reference / "params.yaml"), "--scale", "smoke",
-                    "--kind", "normal", "--shards", *shards, "--out-dir", str(out)])
+                    "--kind", "normal", "--shards", *shards, "--out-dir", str(out)], env=env_of(reference))
         assert proc.returncode not in (-signal.SIGBUS, 128 + signal.SIGBUS), proc.stderr
         assert_one_line_error(proc, "tool-dataset", out / "frames.npy", "No space left on device")
         assert not out.exists() or list(out.iterdir()) == []
