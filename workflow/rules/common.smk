@@ -26,6 +26,31 @@ except TactilepipeError as exc:
 CLI = f"{shlex.quote(sys.executable)} -m tactilepipe"
 PARAMS_ARGS = f"--override {shlex.quote(json.dumps(OVERRIDES, sort_keys=True))}" if OVERRIDES else ""
 
+
+def rule_resources(rule):
+    """What a rule's job asks a scheduler for at this scale: params.yaml `resources` (default, then
+    the rule's entry; scales overlay both). mem_mb (MB), runtime (minutes), gpu (0: none)."""
+    res = {**P["resources"]["default"], **P["resources"]["rules"].get(rule, {})}
+    return {k: v for k, v in res.items() if not (k == "gpu" and v == 0)}
+
+
+def _print_estimate_after_dry_run():
+    # `snakemake -n` runs no hooks (onstart/onsuccess), so the estimate is printed at exit, once
+    # the DAG it counts is built; a real run (or a job inside one) prints nothing.
+    dag = workflow.dag
+    if not workflow.dryrun or dag is None:
+        return
+    jobs = [(job.rule.name, dict(job.wildcards), dict(job.resources), job.threads)
+            for job in dag.needrun_jobs(exclude_finished=False) if not job.is_norun]
+    if jobs:
+        from tactilepipe.estimate import estimate_report
+        print(estimate_report(P, jobs, run_spec=globals().get("run_spec")), flush=True)
+
+
+import atexit
+
+atexit.register(_print_estimate_after_dry_run)
+
 LOGS = "results/logs"
 VOLUME = "results/volume"
 DRIFT = "results/drift"

@@ -9,6 +9,8 @@ rule drift_report:
         series=f"{DRIFT}/drift_series.csv",
     params:
         drift=P["drift"],
+    resources:
+        **rule_resources("drift_report"),
     log:
         f"{LOGS}/drift/report.log",
     shell:

@@ -8,6 +8,8 @@ rule ingest_papillarray:
         "results/{scene}/shards/{session}/{stem}.parquet",
     wildcard_constraints:
         scene="volume|drift",
+    resources:
+        **rule_resources("ingest_papillarray"),
     log:
         f"{LOGS}/ingest/{{scene}}/{{session}}/{{stem}}.log",
     shell:

@@ -11,6 +11,8 @@ rule simulate_volume:
         physics=P["simulate_volume"],
         seed=P["seed"],
     threads: 2
+    resources:
+        **rule_resources("simulate_volume"),
     log:
         f"{LOGS}/simulate_volume/{{session}}.log",
     shell:
@@ -28,6 +30,8 @@ rule simulate_drift:
         physics=P["simulate_volume"],
         seed=P["seed"],
     threads: 2
+    resources:
+        **rule_resources("simulate_drift"),
     log:
         f"{LOGS}/simulate_drift/{{session}}.log",
     shell:

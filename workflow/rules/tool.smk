@@ -16,6 +16,8 @@ rule simulate_tool:
         physics=P["simulate_tool"],
         seed=P["seed"],
     threads: 2
+    resources:
+        **rule_resources("simulate_tool"),
     log:
         f"{LOGS}/simulate_tool/{{session}}.log",
     shell:
@@ -31,6 +33,8 @@ rule ingest_tool:
         fmt=lambda w: tool_trial_format(w.session, w.trial),
         path=lambda w: tool_trial_path(w.session, w.trial),
         ingest=P["tool_ingest"],
+    resources:
+        **rule_resources("ingest_tool"),
     log:
         f"{LOGS}/ingest_tool/{{session}}/{{trial}}.log",
     shell:
@@ -50,6 +54,8 @@ rule tool_dataset:
     params:
         kind=lambda w: TOOL_TARGETS[w.scene][0],
         sync=P["tool_sync"],
+    resources:
+        **rule_resources("tool_dataset"),
     log:
         f"{LOGS}/{{scene}}/dataset.log",
     shell:
@@ -69,6 +75,8 @@ rule tool_split:
         label=lambda w: TOOL_TARGETS[w.scene][1],
         split=P["tool_split"],
         seed=P["seed"],
+    resources:
+        **rule_resources("tool_split"),
     log:
         f"{LOGS}/{{scene}}/split_{{split}}.log",
     shell:
@@ -87,6 +95,8 @@ rule tool_data_report:
         scene="tool_normal|tool_shear",
     params:
         level=P["tool_split"]["level_n"],
+    resources:
+        **rule_resources("tool_data_report"),
     log:
         f"{LOGS}/{{scene}}/data_report.log",
     shell:
@@ -144,6 +154,8 @@ rule tool_train:
         train={k: v for k, v in P["tool_train"].items() if k not in ("variants", "sweep", "loto")},
         seed=P["seed"],
     threads: 2
+    resources:
+        **rule_resources("tool_train"),
     log:
         "results/logs/{scene}/train_{run}.log",
     shell:
@@ -165,6 +177,8 @@ rule tool_model_report:
         scene="tool_normal|tool_shear",
     params:
         sweep=[sweep_run_name(s) for s in P["tool_train"]["sweep"]],
+    resources:
+        **rule_resources("tool_model_report"),
     log:
         "results/logs/{scene}/model_report.log",
     shell:

@@ -11,6 +11,8 @@ rule volume_dataset:
     params:
         segment=P["segment"],
         sessions=P["volume_sessions"],
+    resources:
+        **rule_resources("volume_dataset"),
     log:
         f"{LOGS}/volume/dataset.log",
     shell:
@@ -25,6 +27,8 @@ rule volume_split:
     params:
         folds=P["folds"],
         seed=P["seed"],
+    resources:
+        **rule_resources("volume_split"),
     log:
         f"{LOGS}/volume/split.log",
     shell:
@@ -42,6 +46,8 @@ rule volume_train:
         mlp=lambda w: {k: v for k, v in P["mlp"].items() if k not in ("grid", "modalities")},
         axes=lambda w: P["mlp"]["modalities"][w.modality],
         sensor=P["volume_sensor"],
+    resources:
+        **rule_resources("volume_train"),
     log:
         f"{LOGS}/volume/train_{{modality}}.log",
     shell:
@@ -58,6 +64,8 @@ rule volume_gridsearch:
     params:
         mlp=P["mlp"],
         sensor=P["volume_sensor"],
+    resources:
+        **rule_resources("volume_gridsearch"),
     log:
         f"{LOGS}/volume/gridsearch.log",
     shell:
@@ -76,6 +84,8 @@ rule volume_baseline:
     params:
         baseline=P["baseline"],
         sensor=P["volume_sensor"],
+    resources:
+        **rule_resources("volume_baseline"),
     log:
         f"{LOGS}/volume/baseline.log",
     shell:
@@ -93,6 +103,8 @@ rule volume_report:
         shards=volume_shards(),
     output:
         VOLUME_TARGETS,
+    resources:
+        **rule_resources("volume_report"),
     log:
         f"{LOGS}/volume/report.log",
     shell:
