@@ -180,3 +180,20 @@ def scene_targets(scenes):
     if missing:
         raise WorkflowError(f"scenes {missing} are not built by this workflow yet (available: {sorted(targets)})")
     return [t for s in scenes for t in targets[s]]
+
+
+# `snakemake --report report.html`: every figure, table and metrics file, each with a caption that
+# names the parameters behind it (workflow/report/); the front page lists all parameters.
+report: "../report/workflow.rst"
+
+
+def reported(files, scene):
+    """Outputs marked for the report, under the scene's category (`{scene}` for the tool rules)."""
+    group = scene if scene in ("volume", "drift") else "tool"
+    out = []
+    for f in files:
+        p = Path(f)
+        kind = {".png": "figures", ".json": "metrics"}.get(p.suffix, "tables")
+        stem = f"{p.stem}_table" if (group, p.stem, p.suffix) == ("tool", "per_tool", ".md") else p.stem
+        out.append(report(f, caption=f"../report/{group}/{stem}.rst", category=scene, subcategory=kind))
+    return out

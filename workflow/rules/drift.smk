@@ -5,7 +5,7 @@ rule drift_report:
     input:
         drift_shards(),
     output:
-        DRIFT_TARGETS,
+        reported(DRIFT_TARGETS, "drift"),
         series=f"{DRIFT}/drift_series.csv",
     params:
         drift=P["drift"],

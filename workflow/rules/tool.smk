@@ -89,8 +89,8 @@ rule tool_data_report:
         data=rules.tool_dataset.output,
         raw=lambda w: tool_raw_inputs(TOOL_TARGETS[w.scene][0]),
     output:
-        qc="results/{scene}/qc.md",
-        figures=expand("results/{{scene}}/figures/{fig}.png", fig=TOOL_DATA_FIGURES),
+        qc=reported(["results/{scene}/qc.md"], "{scene}")[0],
+        figures=reported(expand("results/{{scene}}/figures/{fig}.png", fig=TOOL_DATA_FIGURES), "{scene}"),
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     params:
@@ -170,9 +170,9 @@ rule tool_model_report:
                               f=["eval.json", "predictions.parquet"]),
         data=rules.tool_dataset.output,
     output:
-        metrics="results/{scene}/metrics.json",
-        tables=expand("results/{{scene}}/tables/{t}.md", t=TOOL_MODEL_TABLES),
-        figures=expand("results/{{scene}}/figures/{fig}.png", fig=TOOL_MODEL_FIGURES),
+        metrics=reported(["results/{scene}/metrics.json"], "{scene}")[0],
+        tables=reported(expand("results/{{scene}}/tables/{t}.md", t=TOOL_MODEL_TABLES), "{scene}"),
+        figures=reported(expand("results/{{scene}}/figures/{fig}.png", fig=TOOL_MODEL_FIGURES), "{scene}"),
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     params:

@@ -102,7 +102,7 @@ rule volume_report:
         qc=f"{VOLUME}/qc.csv",
         shards=volume_shards(),
     output:
-        VOLUME_TARGETS,
+        reported(VOLUME_TARGETS, "volume"),
     resources:
         **rule_resources("volume_report"),
     log:
