@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SNAKEMAKE := $(BIN)/snakemake --cores 2 --workflow-profile workflow/profiles/default
 
-.PHONY: run test smoke bench clean-results
+.PHONY: run test test-slurm smoke bench clean-results
 
 $(STAMP): requirements.txt pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -23,6 +23,9 @@ smoke: $(STAMP)  ## the whole pipeline at the smoke scale (about a minute)
 
 test: $(STAMP)  ## the whole test suite (unit + smoke-scale integration through real Snakemake)
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest
+
+test-slurm: $(STAMP)  ## the smoke scale through a single-node SLURM cluster started here (root; apt-installs slurm-wlm, munge)
+	PATH=$(CURDIR)/$(BIN):$$PATH TACTILEPIPE_SLURM_TEST=1 $(BIN)/pytest -m slurm -v tests/test_cluster.py
 
 bench: $(STAMP)  ## benchmarks, each printing ours next to the reference loop and the target
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_volume.py

@@ -155,11 +155,16 @@ def test_serial_log_round_trips(sample, newline):
     start, ms, counts = sample
     text = newline.join([f"# start_host_ns={start}"] + [",".join(map(str, [t, *c])) for t, c in zip(ms, counts)])
     tmp, path = scratch("force.log", (text + newline).encode())
+    rails = ((counts == 0) | (counts == 1023)).any(axis=1)    # saturated samples: dropped and counted
     with tmp:
+        if rails.all():
+            with pytest.raises(InputError, match="at the ADC rails"):
+                read_serial_log(path)
+            return
         log = read_serial_log(path)
-    assert log.start_host_ns == start and not log.drops
-    np.testing.assert_array_equal(log.arduino_ms, ms)
-    np.testing.assert_array_equal(log.counts, counts)
+    assert log.start_host_ns == start and dict(log.drops) == ({"ADC saturated": int(rails.sum())} if rails.any() else {})
+    np.testing.assert_array_equal(log.arduino_ms, ms[~rails])
+    np.testing.assert_array_equal(log.counts, counts[~rails])
 
 
 @FAST

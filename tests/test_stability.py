@@ -10,6 +10,7 @@ reaching a loss, a mu optimum on the edge of the sweep, skewed force distributio
 from __future__ import annotations
 
 import copy
+import json
 import math
 
 import numpy as np
@@ -245,9 +246,6 @@ def test_zero_force_lift_is_refused_by_force_segmentation(quiet, smoke_params, t
         dataset.build_dataset(lifts, {**smoke_params["segment"], "method": "force"})
 
 
-@pytest.mark.xfail(strict=True, reason="volume/dataset.py (not owned here) takes the pose segment of a "
-                                       "lift whose pads carry nothing: a zero-force lift enters the dataset "
-                                       "with its volume label, neither refused nor counted")
 def test_zero_force_lift_is_not_silently_kept_by_pose_segmentation(smoke_params, tmp_path):
     from tactilepipe.shards import ingest_bag
     from tactilepipe.volume import dataset
@@ -261,6 +259,24 @@ def test_zero_force_lift_is_not_silently_kept_by_pose_segmentation(smoke_params,
     except InputError:
         return                                            # refused with a message: fine
     assert "dropped" in qc.columns and qc["dropped"].sum() == 1
+
+
+def test_pose_segmentation_names_the_missing_load(smoke_params, tmp_path):
+    from tactilepipe.shards import ingest_bag
+    from tactilepipe.volume import dataset
+    empty = {**smoke_params["simulate_volume"], "grip_force_n": 0.0}
+    vsim.write_lift_bag(tmp_path / "empty.bag", _lift(100.0), empty, 1)
+    ingest_bag(tmp_path / "empty.bag", tmp_path / "empty.parquet")
+    rec = dataset.read_shard(tmp_path / "empty.parquet")
+    assert rec["tool_z"] is not None                          # the arm did rise
+    with pytest.raises(InputError, match=r"empty\.parquet: the pads carry no load off the table .* "
+                                         r"by the pose method, need 10 x the rest noise"):
+        dataset.off_table_segment(rec, smoke_params["segment"], tmp_path / "empty.parquet")
+    # an empty container (0 ml: only its own 56 g) is a load, and is kept
+    vsim.write_lift_bag(tmp_path / "light.bag", _lift(0.0), smoke_params["simulate_volume"], 1)
+    ingest_bag(tmp_path / "light.bag", tmp_path / "light.parquet")
+    light = dataset.read_shard(tmp_path / "light.parquet")
+    assert dataset.off_table_segment(light, smoke_params["segment"], "light")[2] == "pose"
 
 
 def test_zero_force_drift_recordings(smoke_params):
@@ -297,9 +313,6 @@ def test_nano17_beyond_range_clips_at_the_adc_rails(smoke_params):
     assert normal["clipped"] == 0
 
 
-@pytest.mark.xfail(strict=True, reason="tool/serial_log.py and tool/ingest.py (not owned here) do not count "
-                                       "samples at the ADC rails: a saturated Nano17 reading enters the labels "
-                                       "as an ordinary (too small) force")
 def test_tool_ingest_reports_adc_saturation(smoke_params, tmp_path):
     from tactilepipe.tool import simulate as tsim
     from tactilepipe.tool.serial_log import read_serial_log
@@ -310,6 +323,53 @@ def test_tool_ingest_reports_adc_saturation(smoke_params, tmp_path):
     path.write_text("\n".join(ser["lines"]) + "\n")
     log = read_serial_log(path)
     assert getattr(log, "saturated", 0) == ser["clipped"]
+
+
+def test_saturated_nano17_samples_are_dropped_counted_and_shown(smoke_params, tmp_path):
+    """Through the native import, ingest, dataset and QC report: no clipped force reaches a label."""
+    from tactilepipe.tool import layout
+    from tactilepipe.tool import simulate as tsim
+    from tactilepipe.tool.dataset import build_tool_dataset
+    from tactilepipe.tool.importers import open_trial
+    from tactilepipe.tool.ingest import ingest_trial, read_shard_info
+    from tactilepipe.tool.report_data import qc_markdown
+    from tactilepipe.tool.serial_log import read_serial_log
+    p = copy.deepcopy(smoke_params)
+    p["simulate_tool"]["press"]["peak_force_n"] = [80.0, 120.0]
+    spec = _tool_spec(p)
+    ser = tsim._Trial(spec, p).serial()
+    at_rails = ((ser["counts"] == 0) | (ser["counts"] == layout.ADC_COUNTS)).any(axis=1)
+    assert at_rails.sum() > 0
+    tsim.write_session(tmp_path / "raw", p, trials=[spec.name])
+    trial = tmp_path / "raw" / spec.name
+    log = read_serial_log(trial / "force.log")
+    assert log.saturated == at_rails.sum() and len(log.counts) == (~at_rails).sum()
+    assert log.counts.min() > 0 and log.counts.max() < layout.ADC_COUNTS
+    info = ingest_trial(open_trial(trial, "native"), tmp_path / "s.parquet", 32)
+    assert info["drops"] == read_shard_info(tmp_path / "s.parquet")["drops"] == {
+        "serial: ADC saturated": int(at_rails.sum())}
+    assert info["force_samples"] == (~at_rails).sum()
+    sync = p["tool_sync"]
+    qc = build_tool_dataset([tmp_path / "s.parquet"], "normal", tmp_path / "data", sync)
+    assert qc["trials"][0]["drops"]["serial: ADC saturated"] == at_rails.sum()
+    md = qc_markdown(json.loads((tmp_path / "data" / "qc.json").read_text()), "normal")
+    assert f"serial: ADC saturated: {at_rails.sum()}" in md
+    assert f"**Nano17 saturated:** {at_rails.sum()} force samples at the ADC rails" in md
+
+
+def test_a_gauge_stuck_at_a_rail_is_an_error(tmp_path):
+    from tactilepipe.tool.serial_log import read_serial_log
+    path = tmp_path / "force.log"
+    path.write_text("# start_host_ns=1000\n" + "".join(f"{100 + 67 * i},512,512,1023,512,512,512\n"
+                                                         for i in range(20)))
+    with pytest.raises(InputError, match=r"all 20 samples have a gauge channel at the ADC rails "
+                                         r"\(count 0 or 1023; channel\(s\) \[2\] in every one\)"):
+        read_serial_log(path)
+    # rails on a few samples are dropped and counted, not an error, however many there are
+    path.write_text("# start_host_ns=1000\n" + "".join(f"{100 + 67 * i},512,{0 if i % 2 else 512},512,512,512,512\n"
+                                                         for i in range(20)))
+    log = read_serial_log(path)
+    assert log.saturated == 10 and dict(log.drops) == {"ADC saturated": 10} and len(log.counts) == 10
 
 
 @pytest.mark.parametrize("e_star", [1.0, 1000.0])

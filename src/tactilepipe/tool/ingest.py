@@ -71,13 +71,18 @@ def _decode_sensor(frames, size: int, name: str) -> tuple[list[bytes], np.ndarra
 
 
 def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, max_offset_s: float = 1.0) -> dict:
-    """Write the shard atomically; returns the trial's QC record (counts, clock offset found)."""
+    """Write the shard atomically; returns the trial's QC record (counts, clock offset found).
+
+    The record's ``drops`` are the importer's counted drops by reason (e.g. "serial: garbage
+    bytes", "serial: ADC saturated": Nano17 samples at the ADC rails, left out of the force rows);
+    ``force_samples`` counts the force rows written, after those drops.
+    """
+    why = f" ({', '.join(f'{k} {v}' for k, v in raw.drops.items() if v)} dropped)" if any(raw.drops.values()) else ""
     empty = [name for name, frames in raw.frames.items() if len(frames) == 0]
     if empty or not raw.frames:
-        why = f" ({', '.join(f'{k} {v}' for k, v in raw.drops.items() if v)} dropped)" if any(raw.drops.values()) else ""
         raise InputError(raw.source, f"no frames of {empty or 'any sensor'} to ingest{why}")
-    if len(raw.force_host_ns) == 0:
-        raise InputError(raw.source, "no force samples")
+    if len(raw.force_host_ns) == 0:     # e.g. every sample saturated or garbled (counted in raw.drops)
+        raise InputError(raw.source, f"no force samples{why}")
     decoded = {name: _decode_sensor(frames, image_size, name) for name, frames in raw.frames.items()}
     force_ns = raw.force_host_ns.astype(np.int64)
     force = np.asarray(raw.force_n, np.float64)

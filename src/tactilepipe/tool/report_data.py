@@ -11,6 +11,7 @@ import pandas as pd
 from tactilepipe.atomic import write_text
 from tactilepipe.tool import figures
 from tactilepipe.tool.importers import open_trial, trial_format
+from tactilepipe.tool.serial_log import SATURATED
 
 
 def qc_markdown(qc: dict, label: str) -> str:
@@ -30,6 +31,14 @@ def qc_markdown(qc: dict, label: str) -> str:
     head = [f"# QC: {qc['kind']} trials", "",
             f"{len(qc['trials'])} trials, {qc['pairs']} frame pairs at {qc['image_size']} px; "
             f"dropped in total: {total_drops or 'none'}.", ""]
+    saturated = {t["trial"]: sum(v for k, v in t["drops"].items() if k.endswith(SATURATED)) for t in qc["trials"]}
+    saturated = {k: v for k, v in saturated.items() if v}
+    if saturated:
+        head += [f"**Nano17 saturated:** {sum(saturated.values())} force samples at the ADC rails (a gauge at "
+                 f"count 0 or 1023: the force was beyond the sensor's range) in {len(saturated)} trial(s) "
+                 f"({', '.join(saturated)}) were dropped: no label comes from a clipped reading, frame pairs among "
+                 f"them are labelled from the unsaturated samples either side or dropped as 'force gap', "
+                 f"so those presses' peak forces are under-represented.", ""]
     return "\n".join(head + rows) + "\n"
 
 

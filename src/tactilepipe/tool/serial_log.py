@@ -4,6 +4,12 @@ Serial links garble lines: a partial first line when the port opens, a truncated
 logging stops, the odd corrupted byte. Such lines are dropped and counted (reported in the QC
 report); a log where more than ``max_drop_fraction`` of the lines are bad, or whose Arduino clock
 jumps backwards (a reset mid-trial, after which no single offset aligns the clocks), is an error.
+
+A sample with any gauge channel at the 10-bit ADC rails (count 0 or ADC_COUNTS) is saturated: the
+force was beyond the Nano17's range and calibrates to a clipped, too small value. Such samples are
+dropped with the reason "ADC saturated" and counted (``SerialLog.saturated``), never passed on as a
+force; they are well-formed lines, so they do not count towards ``max_drop_fraction``. A log whose
+every sample is saturated (a gauge stuck at a rail: overload or a broken wire) is an error.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ MAX_ARDUINO_MS = 2**32 - 1           # millis() is an unsigned 32-bit counter
 MAX_HOST_NS = 2**62                  # host clock in ns since 1970: far beyond any real date
 _INT = re.compile(r"^-?[0-9]+$")     # plain decimal integers only (int() would take "1_0", "+1", " 1")
 _GARBAGE = re.compile(r"[^\x20-\x7e\t\r]")   # non-ASCII (decoded as U+FFFD) and control bytes
+SATURATED = "ADC saturated"          # drop reason of a sample with a gauge channel at the ADC rails
 
 
 @dataclass
@@ -32,6 +39,17 @@ class SerialLog:
     counts: np.ndarray              # (n, 6) ADC counts
     line_numbers: np.ndarray        # (n,) 1-based line of each kept sample, for error messages
     drops: Counter = field(default_factory=Counter)
+
+    @property
+    def saturated(self) -> int:
+        """Samples dropped because a gauge channel sat at the ADC rails (0 or ADC_COUNTS)."""
+        return self.drops[SATURATED]
+
+
+def at_adc_rails(counts: np.ndarray) -> np.ndarray:
+    """(n,) True where any gauge channel of a sample reads 0 or ADC_COUNTS (saturated)."""
+    counts = np.asarray(counts)
+    return ((counts <= 0) | (counts >= ADC_COUNTS)).any(axis=1)
 
 
 def _parse_line(text: str) -> tuple[int, list[int]] | str:
@@ -92,6 +110,8 @@ def read_serial_log(path: str | Path, max_drop_fraction: float = 0.2) -> SerialL
         raise InputError(path, f"{sum(drops.values())} of {total} lines are unreadable ({dict(drops)}); "
                                f"more than {max_drop_fraction:.0%} means the link or the format is wrong")
     t = np.asarray(times, np.int64)
+    c = np.asarray(counts, np.int64).reshape(-1, N_CHANNELS)
+    numbers = np.asarray(numbers)
     steps = np.diff(t)
     if (steps < 0).any():
         k = int(np.argmax(steps < 0)) + 1
@@ -100,4 +120,15 @@ def read_serial_log(path: str | Path, max_drop_fraction: float = 0.2) -> SerialL
     if (steps == 0).any():
         k = int(np.argmax(steps == 0)) + 1
         raise InputError(path, f"duplicated Arduino timestamp {t[k]} ms", f"line {numbers[k]}")
-    return SerialLog(int(header.group(1)), t, np.asarray(counts, np.int64), np.asarray(numbers), drops)
+    # the clock checks above include saturated samples (their times are valid); their forces are not
+    saturated = at_adc_rails(c)
+    if saturated.all():
+        stuck = [ch for ch in range(N_CHANNELS) if at_adc_rails(c[:, [ch]]).all()]
+        raise InputError(path, f"all {len(t)} samples have a gauge channel at the ADC rails (count 0 or "
+                               f"{ADC_COUNTS}{f'; channel(s) {stuck} in every one' if stuck else ''}): "
+                               f"the Nano17 is overloaded or a gauge is disconnected")
+    if saturated.any():
+        drops[SATURATED] += int(saturated.sum())
+        keep = ~saturated
+        t, c, numbers = t[keep], c[keep], numbers[keep]
+    return SerialLog(int(header.group(1)), t, c, numbers, drops)

@@ -1,7 +1,9 @@
 """Shards -> the off-table force samples of every lift (the table every model reads).
 
 A lift is off the table while the arm is raised (pose topic) or, in recordings without the
-pose topic, while the vertical shear |Fy| carried by the pads stays near its hold level.
+pose topic, while the vertical shear |Fy| carried by the pads stays near its hold level. Either
+way the pads must carry a load off the table: a lift whose vertical shear never rises clearly
+above the noise (nothing grasped) is refused, never kept with its volume label.
 """
 
 from __future__ import annotations
@@ -67,28 +69,40 @@ def _fill_short_gaps(mask: np.ndarray, max_gap: int) -> np.ndarray:
     return out
 
 
+def _vertical_load(rec: dict, seg: dict) -> tuple[np.ndarray, float, int]:
+    """Smoothed vertical shear |Fy0 + Fy1| above its level at rest (the first samples, on the
+    table), the noise of that smoothed signal at rest, and the smoothing width (samples)."""
+    dt = np.median(np.diff(rec["t"])) if len(rec["t"]) > 1 else 1.0
+    fy = np.abs(np.nan_to_num(rec["fy0"]) + np.nan_to_num(rec["fy1"]))
+    width = max(1, int(round(seg["force_smooth_s"] / dt)))
+    smooth = np.convolve(fy, np.ones(width) / width, mode="same")
+    rest = np.median(smooth[: max(1, width * 2)])
+    noise = np.std(fy[: max(2, width * 2)]) / np.sqrt(width)   # of the smoothed signal at rest
+    return smooth - rest, float(noise), width
+
+
 def off_table_segment(rec: dict, seg: dict, path: str | Path = "?") -> tuple[int, int, str]:
-    """Sample range [start, stop) when the container is off the table, and the method used."""
+    """Sample range [start, stop) when the container is off the table, and the method used.
+
+    Either method needs the pads to carry a load clearly above the noise (10 x the noise of the
+    smoothed vertical shear at rest) off the table: a lift with nothing grasped is an InputError
+    (the force method finds no off-table phase, the pose method finds one that carries nothing).
+    """
     method = seg["method"]
     if method == "pose" and rec["tool_z"] is None:
         raise InputError(path, "segment.method is 'pose' but the bag has no /tool_pose topic")
+    load, noise, width = _vertical_load(rec, seg)
     if method in ("auto", "pose") and rec["tool_z"] is not None:
         z = rec["tool_z"]
         rest = np.median(z[: max(1, int(0.1 * len(z)))])
         mask = (z - rest) * 1000.0 > seg["pose_lift_threshold_mm"]
         used = "pose"
     else:
-        dt = np.median(np.diff(rec["t"])) if len(rec["t"]) > 1 else 1.0
-        fy = np.abs(np.nan_to_num(rec["fy0"]) + np.nan_to_num(rec["fy1"]))
-        width = max(1, int(round(seg["force_smooth_s"] / dt)))
-        smooth = np.convolve(fy, np.ones(width) / width, mode="same")
-        rest = np.median(smooth[: max(1, width * 2)])
-        level = np.percentile(smooth - rest, 75)
-        noise = np.std(fy[: max(2, width * 2)]) / np.sqrt(width)   # of the smoothed signal at rest
+        level = np.percentile(load, 75)
         if level < 10 * noise:
-            mask = np.zeros(len(smooth), bool)          # no load rises clearly above the noise
+            mask = np.zeros(len(load), bool)            # no load rises clearly above the noise
         else:
-            mask = (smooth - rest) >= seg["force_fraction"] * level
+            mask = load >= seg["force_fraction"] * level
             mask = _fill_short_gaps(mask, 2 * width)    # noise dips on light loads split the hold
         used = "force"
     start, stop = _longest_run(mask)
@@ -96,6 +110,12 @@ def off_table_segment(rec: dict, seg: dict, path: str | Path = "?") -> tuple[int
     if duration < seg["min_off_table_s"]:
         raise InputError(path, f"the lift never leaves the table (longest off-table phase {duration:.2f} s "
                                f"by the {used} method, need {seg['min_off_table_s']} s)")
+    if used == "pose":      # the force method found its phase by the load; the arm rises without one
+        carried = float(np.median(load[start:stop]))
+        if not carried > 10 * noise:
+            raise InputError(path, f"the pads carry no load off the table (median vertical shear {carried:.3f} N "
+                                   f"above rest over the {duration:.2f}-s off-table phase by the pose method, "
+                                   f"need 10 x the rest noise {noise:.3f} N): nothing grasped?")
     return start, stop, used
 
 
