@@ -6,6 +6,11 @@
 3. Training loader samples/s (memory-mapped decoded arrays) against a loader that decodes and
    resizes the original JPEG frames for every sample, as the public code of study 000 does
    (4 images per sample: both fingers, current and reference; target >= 10x).
+4. `tactilepipe predict`: a recorded trial streamed pair by pair (decode, preprocess, model at
+   batch 1) through the default-scale full model, in sustained frame pairs/s on 2 threads
+   (target >= 30, the DIGIT frame rate used in study 000). The trained checkpoint
+   results/tool_normal/models/full/best.pt is used when it exists; otherwise a freshly
+   initialised model of the same variant, depth and input size (speed does not depend on weights).
 
 Usage: python benchmarks/bench_tool.py [--trials N] [--size 64]
 """
@@ -26,6 +31,7 @@ from tactilepipe.tool.dataset import build_tool_dataset
 from tactilepipe.tool.ingest import ingest_trial
 from tactilepipe.tool.loader import ToolFrames
 from tactilepipe.tool.native_import import read_native_trial
+from tactilepipe.tool.predict import stream_predictions
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -107,6 +113,34 @@ def main() -> None:
         jpeg = row("decode + resize 4 JPEGs per sample (public code)", _timed(jpeg_loader), n, "samples/s")
         mine = row("tactilepipe ToolFrames (memory-mapped, decoded once)", _timed(our_loader), n, "samples/s")
         print(f"ours / JPEG loader = {mine / jpeg:.1f}x  (target >= 10x: {'met' if mine >= 10 * jpeg else 'NOT met'})")
+
+        print("\n== predict: one recorded trial streamed at batch 1 (2 threads)")
+        torch.set_num_threads(2)
+        checkpoint = REPO / "results/tool_normal/models/full/best.pt"
+        if not checkpoint.exists():
+            checkpoint = _untrained_checkpoint(p, Path(tmp) / "untrained.pt")
+        print(f"checkpoint: {checkpoint}")
+        with open(Path(tmp) / "predictions.csv", "w") as sink:
+            summary = stream_predictions(checkpoint, trials[0], "native", p, out=sink)
+        rate = summary["sustained_pairs_per_s"]
+        print(f"{summary['pairs']} pairs, median latency {summary['median_latency_ms']:.1f} ms, sustained {rate:.1f} pairs/s "
+              f"(target >= 30: {'met' if rate >= 30 else 'NOT met'})")
+
+
+def _untrained_checkpoint(p: dict, path: Path) -> Path:
+    """A checkpoint of a freshly initialised default-scale full model, in the trainer's format."""
+    import dataclasses
+    import torch
+    from tactilepipe.tool.model import build_model
+    from tactilepipe.tool.train import CHECKPOINT_FORMAT, TrainConfig
+    tt, size = p["tool_train"], p["tool_ingest"]["image_size"]
+    cfg = TrainConfig(variant="full", depth=tt["depth"], image_size=size)
+    model = build_model("full", tt["depth"], size)
+    meta = {"variant": "full", "depth": tt["depth"], "image_size": size, "normalise": "minmax",
+            "label_stats": {"min": 0.0, "max": 30.0, "mean": 5.0, "std": 5.0}}
+    torch.save({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "config": dataclasses.asdict(cfg),
+                "meta": meta}, path)
+    return path
 
 
 def _timed(func) -> float:

@@ -169,8 +169,9 @@ def test_sigkill_during_training_then_rerun_equals_uninterrupted(reference, tmp_
     want = pd.read_parquet(reference / MODEL_DIR / "predictions.parquet")
     pd.testing.assert_frame_equal(got, want, check_exact=True)
     e_got, e_want = (json.loads((d / MODEL).read_text()) for d in (wd, reference))
-    assert {k: v for k, v in e_got.items() if k not in TIMING_FIELDS} == \
-        {k: v for k, v in e_want.items() if k not in TIMING_FIELDS}
+    assert e_got["resumed_from_epoch"] >= 1 and e_want["resumed_from_epoch"] == 0   # resumed, not restarted
+    skip = TIMING_FIELDS | {"resumed_from_epoch"}
+    assert {k: v for k, v in e_got.items() if k not in skip} == {k: v for k, v in e_want.items() if k not in skip}
     losses = ["epoch", "train_loss", "val_loss", "val_mae_n"]
     h_got, h_want = (pd.read_csv(d / MODEL_DIR / "history.csv")[losses] for d in (wd, reference))
     pd.testing.assert_frame_equal(h_got, h_want, check_exact=True)

@@ -128,7 +128,7 @@ def sweep_run_name(s):
 def run_spec(run):
     """(variant, split, depth, image_size) of a run name."""
     tt = P["tool_train"]
-    size = P["tool_ingest"]["image_size"]
+    size = tt["image_size"]
     if run == "full_loto":
         return "full", "loto", tt["depth"], size
     for s in tt["sweep"]:
@@ -144,8 +144,8 @@ rule tool_train:
     output:
         evaluation="results/{scene}/models/{run}/eval.json",
         predictions="results/{scene}/models/{run}/predictions.parquet",
-        best="results/{scene}/models/{run}/best.pt",
-        history="results/{scene}/models/{run}/history.csv",
+        # best.pt, last.pt and history.csv are written beside them but not declared: Snakemake
+        # deletes the declared outputs of a killed job, and last.pt must survive to resume it
     wildcard_constraints:
         scene="tool_normal|tool_shear",
         run="[a-z_0-9]+",

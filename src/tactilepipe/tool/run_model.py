@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -18,18 +19,22 @@ LABELS = {"tool_normal": ("normal", "minmax"), "tool_shear": ("shear", "zscore")
 
 def train_and_predict(scene: str, data_dir: Path, split_path: Path, out_dir: Path, variant: str, depth: int,
                       image_size: int, tp: dict, seed: int, progress: bool = True) -> dict:
-    from tactilepipe.tool.train import TrainConfig, latency_ms, load_model, predict, train
+    from tactilepipe.tool.train import TrainConfig, latency_ms, load_model, predict, stale_checkpoint_reason, train
     label, normalise = LABELS[scene]
     data = ToolFrames(data_dir, label).resized(image_size)
     split = json.loads(Path(split_path).read_text())
     cfg = TrainConfig(variant=variant, depth=depth, image_size=image_size, lr=tp["lr"], batch_size=tp["batch_size"],
                       max_epochs=tp["max_epochs"], patience=tp["patience"], seed=seed, device=tp["device"],
                       amp=tp["amp"], num_threads=tp["num_threads"], normalise=normalise,
-                      max_train_batches_per_epoch=tp["max_train_batches_per_epoch"] or None)
-    if (out_dir / "last.pt").exists() and not (out_dir / "best.pt").exists():
-        # a failed job's declared outputs (best.pt) were removed but its last.pt was not:
-        # the pair no longer describes one run, so start that run again
+                      max_train_batches_per_epoch=tp["max_train_batches_per_epoch"] or None,
+                      bn_recalibration_batches=tp["bn_recalibration_batches"])
+    # last.pt of an interrupted run resumes it; one made with other settings (the workflow re-runs
+    # this job after a parameter change) or unreadable is set aside, and the run starts again
+    stale = stale_checkpoint_reason(out_dir / "last.pt", cfg, split, data)
+    if stale:
+        print(f"{out_dir / 'last.pt'}: {stale}; training from the start", file=sys.stderr)
         (out_dir / "last.pt").unlink()
+        (out_dir / "best.pt").unlink(missing_ok=True)
     summary = train(data, split, cfg, out_dir, progress=progress)
     model, _ = load_model(out_dir / "best.pt")
     test = np.asarray(split["test"])
@@ -43,7 +48,8 @@ def train_and_predict(scene: str, data_dir: Path, split_path: Path, out_dir: Pat
     write_parquet(out_dir / "predictions.parquet", table)
     result = {**evaluate(table), "variant": variant, "depth": depth, "image_size": image_size,
               "split": split["name"], "train_s": summary["train_wall_s"], "epochs": summary["epochs_run"],
-              "best_epoch": summary["best_epoch"], "parameters": summary["parameters"],
+              "best_epoch": summary["best_epoch"],
+              "resumed_from_epoch": summary["resumed_from_epoch"], "parameters": summary["parameters"],
               "latency_ms": latency_ms(model, image_size, n=20), "predict_s": predict_s, "device": summary["device"]}
     write_json(out_dir / "eval.json", result)
     return result
