@@ -1,7 +1,7 @@
 """Scale-out (issue 7): per-rule resources, the paper-scale dry run with its compute estimate,
 device selection and mixed precision, and the smoke scale through a real single-node SLURM
 cluster (`slurm` marker, `make test-slurm`: needs root; installs slurm-wlm and munge with apt when
-missing; not part of `make test`, it takes about ten minutes on 2 cores)."""
+missing; not part of `make test`: 43 min on this shared 2-core machine, local run included)."""
 
 from __future__ import annotations
 
@@ -244,7 +244,7 @@ def comparable(wd: Path) -> dict:
 @pytest.fixture(scope="module")
 def slurm_cluster():
     if os.environ.get("TACTILEPIPE_SLURM_TEST") != "1":
-        pytest.skip("installs and starts SLURM, then ~10 min of jobs: run with `make test-slurm` "
+        pytest.skip("installs and starts SLURM, then ~100 jobs through it: run with `make test-slurm` "
                     "(sets TACTILEPIPE_SLURM_TEST=1)")
     if os.geteuid() != 0:
         pytest.skip("a SLURM test cluster needs root (apt-get install, slurmd)")
