@@ -1,6 +1,7 @@
 """`tactilepipe predict`: stream a recorded trial through a trained model, pair by pair.
 
-Each frame pair is preprocessed exactly as for training (tool/ingest.preprocess), stacked with
+Each frame pair is preprocessed exactly as for training (tool/ingest.preprocess at the ingest size,
+then the loader's area downscale to the model's input size), stacked with
 the trial's first pair as the zero-force reference, and run at batch 1; the prediction and the
 latency (preprocessing + model) are printed per pair, then a summary with the sustained rate.
 """
@@ -11,6 +12,7 @@ import sys
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from tactilepipe.tool.importers import open_trial
@@ -32,8 +34,13 @@ def stream_predictions(checkpoint: Path, trial: Path, fmt: str, p: dict, limit: 
     if limit:
         il, ir = il[:limit], ir[:limit]
 
+    ingest_size = p["tool_ingest"]["image_size"]
+
     def prep(frames, i):
-        return preprocess(frames.load(int(i)), size)
+        # the training path exactly: ingest's preprocessing at the dataset size, then the loader's
+        # area downscale to the model's size (ToolFrames.resized)
+        img = preprocess(frames.load(int(i)), ingest_size)
+        return img if ingest_size == size else cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
 
     ref = [prep(left, il[0]), prep(right, ir[0])]
     latencies, preds = [], []
