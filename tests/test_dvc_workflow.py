@@ -1,0 +1,220 @@
+"""Day-to-day DVC work, end to end with the real `git`, `dvc` and `snakemake` command lines, in a
+temporary git repository with a local-directory remote, at the smoke scale:
+
+1. a new recording session: `dvc add`, `dvc repro` re-runs only the volume stage and ingests only
+   the new bags; `dvc metrics diff` shows the change against the last commit;
+2. experiments: `dvc exp run -S ...`, `dvc exp show --md`, `dvc exp diff`, `dvc params diff`;
+3. sharing: `dvc push`, a fresh `git clone` + `dvc pull` is byte-identical and Snakemake has
+   nothing to do;
+4. plots: `dvc plots show` (offline) and `dvc plots diff` between two commits;
+and `snakemake --report` builds one self-contained HTML file."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+import yaml
+
+from test_dvc_graph import covers, dvc_stages
+from test_workflow import BIN, REPO, copy_project, run, snakemake
+
+pytestmark = pytest.mark.integration
+
+STAGES = ["simulate_volume", "simulate_drift", "volume", "drift", "simulate_tool", "tool_data", "tool_models"]
+NEW = "s2026-05-01"        # the "new recording session"
+
+
+def dvc(wd: Path, *args: str, check: bool = True):
+    return run([str(BIN / "dvc"), *args], wd, check)
+
+
+def dvc_out(wd: Path, *args: str) -> str:
+    """stdout + stderr (Snakemake's job lines and stats reach dvc's stderr)."""
+    proc = dvc(wd, *args)
+    return proc.stdout + proc.stderr
+
+
+def git(wd: Path, *args: str):
+    return run(["git", *args], wd)
+
+
+def ran_stages(out: str) -> set[str]:
+    return set(re.findall(r"Running stage '(\w+)'", out))
+
+
+def job_counts(out: str) -> dict[str, int]:
+    """Snakemake's "Job stats" tables in a command's output, summed over runs."""
+    counts: dict[str, int] = {}
+    for rule, n in re.findall(r"^(\w+)\s+(\d+)$", out, flags=re.M):
+        if rule != "total":
+            counts[rule] = counts.get(rule, 0) + int(n)
+    return counts
+
+
+def tracked_files(wd: Path) -> dict[str, bytes]:
+    """Every file under raw/ and results/ (the logs are not artefacts: not tracked, not shared)."""
+    return {str(p.relative_to(wd)): p.read_bytes() for top in ("raw", "results") for p in sorted((wd / top).rglob("*"))
+            if p.is_file() and not str(p.relative_to(wd)).startswith("results/logs/")
+            and p.name not in (".gitignore", "README.md") and p.suffix != ".dvc"}
+
+
+@pytest.fixture(scope="module")
+def repo(tmp_path_factory) -> dict:
+    """A git + DVC project at the smoke scale, reproduced, committed and pushed to a local remote."""
+    root = tmp_path_factory.mktemp("dvcflow")
+    (root / "project").mkdir()
+    wd = copy_project(root / "project", scale="smoke")
+    shutil.copy(REPO / ".gitignore", wd / ".gitignore")
+    git(wd, "init", "-q")
+    git(wd, "config", "user.email", "test@example.com")
+    git(wd, "config", "user.name", "test")
+    dvc(wd, "init", "-q")
+    shutil.copy(REPO / ".dvc/config", wd / ".dvc/config")            # the project's cache and remote set-up
+    remote = root / "remote"
+    dvc(wd, "remote", "modify", "local", "url", str(remote))        # committed: a clone finds it
+    out = dvc_out(wd, "repro")
+    assert ran_stages(out) == set(STAGES), out[-3000:]
+    git(wd, "add", ".")
+    git(wd, "commit", "-q", "-m", "baseline at smoke scale")
+    dvc(wd, "push")
+    return {"wd": wd, "root": root, "remote": remote}
+
+
+def test_every_generated_file_is_a_declared_out(repo):
+    wd = repo["wd"]
+    assert "up to date" in dvc(wd, "status").stdout.lower()
+    outs = [o for s in dvc_stages(wd / "dvc.yaml", yaml.safe_load((wd / "params.yaml").read_text())).values()
+            for o in s["outs"]]
+    undeclared = [f for f in tracked_files(wd) if not any(covers(f, o) for o in outs)]
+    assert undeclared == []
+    # metrics are `cache: false`: git versions them (a clone has them without a pull)
+    in_git = run(["git", "ls-files", "results"], wd).stdout.split()
+    assert sorted(f for f in in_git if f.endswith("metrics.json")) == sorted(
+        f"results/{s}/metrics.json" for s in ("drift", "tool_normal", "tool_shear", "volume"))
+    assert (wd / ".dvc/config").read_text().count("reflink,copy") == 1
+
+
+@pytest.fixture(scope="module")
+def new_session(repo) -> dict:
+    """Step 1: a new volume session recorded elsewhere is copied in, versioned and reproduced."""
+    wd = repo["wd"]
+    shard_dir = wd / "results/volume/shards/sim-smoke"
+    old_shards = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in shard_dir.glob("*.parquet")}
+    # "recorded on the rig": the simulator with another seed writes bags + lifts.csv somewhere else
+    rig = repo["root"] / "rig"
+    run([str(BIN / "tactilepipe"), "simulate", "volume", "--scale", "smoke", "--override", '{"seed": 7}',
+         "--out-dir", str(rig / NEW), "--labels", "--jobs", "2"], wd)
+    shutil.copytree(rig / NEW, wd / "raw/volume" / NEW)
+    dvc(wd, "add", f"raw/volume/{NEW}")
+    params = (wd / "params.yaml").read_text()
+    assert 'volume_sessions: ["sim-{scale}"]' in params
+    (wd / "params.yaml").write_text(params.replace('volume_sessions: ["sim-{scale}"]',
+                                                   f'volume_sessions: ["sim-{{scale}}", "{NEW}"]'))
+    out = dvc_out(wd, "repro")
+    metrics_diff = json.loads(dvc(wd, "metrics", "diff", "--json").stdout)
+    metrics_diff_md = dvc(wd, "metrics", "diff", "--md").stdout
+    n_new = len(list((wd / "raw/volume" / NEW).glob("*.bag")))
+    git(wd, "add", "params.yaml", "dvc.lock", f"raw/volume/{NEW}.dvc", "raw/volume/.gitignore",
+        "results/volume/metrics.json")
+    git(wd, "commit", "-q", "-m", f"new session {NEW}")
+    dvc(wd, "push")
+    return {"out": out, "diff": metrics_diff, "diff_md": metrics_diff_md, "old_shards": old_shards, "n_new": n_new}
+
+
+def test_new_session_reruns_only_the_volume_stage_and_ingests_only_new_bags(repo, new_session):
+    wd, out = repo["wd"], new_session["out"]
+    assert ran_stages(out) == {"volume"}, out[-3000:]
+    for stage in set(STAGES) - {"volume"}:
+        assert f"Stage '{stage}' didn't change, skipping" in out, stage
+    counts = job_counts(out)
+    assert new_session["n_new"] > 30
+    assert counts["ingest_papillarray"] == new_session["n_new"], counts       # only the new bags
+    assert counts["volume_dataset"] == 1 and "simulate_volume" not in counts
+    for name, (mtime, data) in new_session["old_shards"].items():             # earlier shards untouched
+        p = wd / "results/volume/shards/sim-smoke" / name
+        assert p.stat().st_mtime_ns == mtime and p.read_bytes() == data, name
+    assert len(list((wd / f"results/volume/shards/{NEW}").glob("*.parquet"))) == new_session["n_new"]
+    # the metrics diff against the last commit: the volume scene changed, nothing else
+    diff = new_session["diff"]
+    assert set(diff) == {"results/volume/metrics.json"}, diff
+    changed = diff["results/volume/metrics.json"]
+    assert "r2.fy_fz.mean" in changed and changed["r2.fy_fz.mean"]["old"] != changed["r2.fy_fz.mean"]["new"]
+    assert "r2.fy_fz.mean" in new_session["diff_md"] and "HEAD" in new_session["diff_md"]
+    assert "up to date" in dvc(wd, "status").stdout.lower()
+
+
+def test_experiments_rerun_only_the_stages_of_the_changed_params(repo, new_session):
+    wd = repo["wd"]
+    out = dvc_out(wd, "exp", "run", "-n", "mu-lr", "-S", "baseline.mu_max=0.35", "-S", "tool_train.lr=0.0005")
+    assert ran_stages(out) == {"volume", "tool_models"}, out[-3000:]
+    counts = job_counts(out)
+    assert "ingest_papillarray" not in counts and "ingest_tool" not in counts and "tool_dataset" not in counts
+    assert counts["tool_train"] == 2 * 6                     # every run of both targets (lr changed)
+    params = json.loads(dvc(wd, "params", "diff", "--json").stdout)["params.yaml"]
+    assert (params["baseline.mu_max"]["old"], params["baseline.mu_max"]["new"]) == (0.4, 0.35)
+    assert (params["tool_train.lr"]["old"], params["tool_train.lr"]["new"]) == (0.0002, 0.0005)
+    show = dvc(wd, "exp", "show", "--md").stdout
+    assert "mu-lr" in show and "baseline.mu_max" in show and "r2.baseline.mean" in show, show[:2000]
+    exp_diff = json.loads(dvc(wd, "exp", "diff", "HEAD", "mu-lr", "--json").stdout)
+    assert exp_diff["params"]["params.yaml"]["baseline.mu_max"]["new"] == 0.35
+    assert "results/volume/metrics.json" in exp_diff["metrics"]
+    # back to the committed state (the experiment stays in `dvc exp show`)
+    git(wd, "checkout", "--", ".")
+    dvc(wd, "checkout", "--force")
+    assert "up to date" in dvc(wd, "status").stdout.lower()
+
+
+def test_push_clone_pull_is_byte_identical_and_snakemake_has_nothing_to_do(repo, new_session):
+    wd, clone = repo["wd"], repo["root"] / "clone"
+    dvc(wd, "push")
+    assert any(repo["remote"].rglob("*"))
+    run(["git", "clone", "-q", str(wd), str(clone)], repo["root"])
+    assert not (clone / "raw/volume/sim-smoke").exists() and not (clone / "results/volume/dataset.parquet").exists()
+    assert (clone / "results/volume/metrics.json").exists()             # metrics come with git
+    dvc(clone, "pull")
+    ours, theirs = tracked_files(wd), tracked_files(clone)
+    assert sorted(theirs) == sorted(ours)
+    assert [f for f in ours if ours[f] != theirs[f]] == []
+    kinds = {Path(f).suffix for f in theirs}
+    assert {".bag", ".csv", ".parquet", ".pt", ".json", ".png", ".md", ".npy"} <= kinds, kinds
+    assert "up to date" in dvc(clone, "status").stdout.lower()
+    # DVC does not keep modification times; give the pulled files Snakemake's order once
+    before = snakemake(clone, "-n").stdout
+    print("snakemake -n right after dvc pull:\n", before[-1500:])
+    snakemake(clone, "--touch")
+    proc = snakemake(clone, "-n")
+    assert "Nothing to be done" in proc.stdout + proc.stderr, proc.stdout[-3000:]
+    assert "up to date" in dvc(clone, "status").stdout.lower()
+    out = dvc_out(clone, "repro")
+    assert ran_stages(out) == set(), out[-2000:]
+
+
+def test_plots_show_offline_and_diff_between_commits(repo, new_session):
+    wd = repo["wd"]
+    declared = yaml.safe_load((wd / "dvc.yaml").read_text())["plots"]
+    dvc(wd, "plots", "show", "-o", "plots_show")
+    html = (wd / "plots_show/index.html").read_text()
+    for png in declared:
+        assert Path(png).name in html or png.replace("/", "_") in html, png
+    assert not re.search(r"<script[^>]+src=\"https?:", html), "image plots must not need the network"
+    assert not re.search(r"(src|href)=\"https?:", html)
+    dvc(wd, "plots", "diff", "HEAD~1", "HEAD", "-o", "plots_diff")
+    diff_html = (wd / "plots_diff/index.html").read_text()
+    assert "HEAD~1" in diff_html and "HEAD" in diff_html
+    assert diff_html.count("<img") >= 2 * len(declared)
+    images = sorted(p for p in (wd / "plots_diff").rglob("*.png"))
+    assert len(images) >= 2 * len(declared)
+
+
+def test_snakemake_report_is_one_self_contained_html(repo, new_session):
+    wd = repo["wd"]
+    snakemake(wd, "--report", "report.html")
+    html = (wd / "report.html").read_text()
+    assert len(html) > 100_000
+    for name in ("r2_by_modality", "drift_curves", "pressing_strip", "window_heatmap", "table1_r2", "fits.md",
+                 "variants.md", "mu_max", "learning_rate"):
+        assert name in html, name
