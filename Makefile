@@ -30,6 +30,7 @@ test-slurm: $(STAMP)  ## the smoke scale through a single-node SLURM cluster sta
 bench: $(STAMP)  ## benchmarks, each printing ours next to the reference loop and the target
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_volume.py
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_tool.py
+	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_dvc.py
 
 clean-results:  ## remove generated results (raw recordings stay)
 	rm -rf results/volume results/drift results/logs

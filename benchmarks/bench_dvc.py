@@ -1,0 +1,124 @@
+"""DVC + Snakemake overhead at the default scale, in a temporary git + DVC copy of the project:
+
+- no-op `snakemake --cores 2` and no-op `dvc repro` (everything built; target <= 5 s each),
+- taking in one new volume session (`dvc add` + `dvc repro`) against a full rebuild of the volume
+  scene from the same recordings (both sessions, every bag re-ingested).
+
+The default-scale recordings and shards of this checkout are reused when present (recordings
+hard-linked: nothing here writes them in place; shards copied), else simulated. The tool models are
+left out: their default-scale training budget is still open (README), so the stages timed are
+simulate_*, volume, drift and tool_data.
+
+    .venv/bin/python benchmarks/bench_dvc.py [--keep]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+ENV = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
+STAGES = ["volume", "drift", "tool_data"]                       # + their upstream simulate_* stages
+SMK_TARGETS = ["volume_report", "drift_report", "tool_data"]
+NEW = "s-bench"
+TARGET_S = 5.0
+
+
+def sh(cmd: list[str], cwd: Path) -> float:
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, cwd=cwd, env=ENV, capture_output=True, text=True)
+    dt = time.perf_counter() - t0
+    if proc.returncode != 0:
+        sys.exit(f"{' '.join(cmd)} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
+    return dt
+
+
+def setup(wd: Path) -> float:
+    for name in ("Snakefile", "params.yaml", "dvc.yaml", ".dvcignore", ".gitignore"):
+        shutil.copy(REPO / name, wd / name)
+    for name in ("workflow", "src"):
+        shutil.copytree(REPO / name, wd / name, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+    for scene in ("volume", "drift", "tool"):
+        src = REPO / "raw" / scene / "sim-default"
+        if src.is_dir():
+            (wd / "raw" / scene).mkdir(parents=True, exist_ok=True)
+            subprocess.run(["cp", "-al", str(src), str(wd / "raw" / scene)], check=True)
+    for shards in ("volume/shards/sim-default", "drift/shards/sim-default", "tool/shards/sim-default"):
+        if (REPO / "results" / shards).is_dir():
+            shutil.copytree(REPO / "results" / shards, wd / "results" / shards)     # keeps mtimes
+    sh(["git", "init", "-q"], wd)
+    sh(["git", "config", "user.email", "bench@example.com"], wd)
+    sh(["git", "config", "user.name", "bench"], wd)
+    sh([str(BIN / "dvc"), "init", "-q"], wd)
+    shutil.copy(REPO / ".dvc/config", wd / ".dvc/config")
+    sh([str(BIN / "dvc"), "remote", "modify", "local", "url", str(wd.parent / "remote")], wd)
+    dt = sh([str(BIN / "dvc"), "repro", *STAGES], wd)
+    sh(["git", "add", "."], wd)
+    sh(["git", "commit", "-q", "-m", "default scale"], wd)
+    return dt
+
+
+def best_of(cmd: list[str], wd: Path, n: int = 3) -> tuple[float, float]:
+    times = [sh(cmd, wd) for _ in range(n)]
+    return min(times), statistics.median(times)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--keep", action="store_true", help="keep the temporary project")
+    args = ap.parse_args()
+    root = Path(tempfile.mkdtemp(prefix="bench_dvc_"))
+    wd = root / "project"
+    wd.mkdir()
+    try:
+        print(f"project copy in {wd}; building the default scale once (dvc repro {' '.join(STAGES)}) ...",
+              flush=True)
+        print(f"  first dvc repro (reused recordings and shards): {setup(wd):.1f} s", flush=True)
+        smk = best_of([str(BIN / "snakemake"), "--cores", "2", *SMK_TARGETS], wd)
+        rep = best_of([str(BIN / "dvc"), "repro", *STAGES], wd)
+
+        rig = root / "rig" / NEW
+        t0 = time.perf_counter()
+        sh([str(BIN / "tactilepipe"), "simulate", "volume", "--override", '{"seed": 7}', "--out-dir", str(rig),
+            "--labels", "--jobs", "2"], wd)
+        t_record = time.perf_counter() - t0
+        shutil.copytree(rig, wd / "raw/volume" / NEW)
+        n_bags = len(list(rig.glob("*.bag")))
+        params = (wd / "params.yaml").read_text()
+        (wd / "params.yaml").write_text(params.replace('volume_sessions: ["sim-{scale}"]',
+                                                       f'volume_sessions: ["sim-{{scale}}", "{NEW}"]'))
+        t_add = sh([str(BIN / "dvc"), "add", f"raw/volume/{NEW}"], wd)
+        t_new = sh([str(BIN / "dvc"), "repro", *STAGES], wd)
+        shutil.rmtree(wd / "results/volume/shards")
+        t_full = sh([str(BIN / "dvc"), "repro", "--force", "--single-item", "volume"], wd)
+
+        print(f"\n| measurement (default scale, 2 cores) | wall time | target |")
+        print("|---|---|---|")
+        print(f"| no-op `snakemake --cores 2 {' '.join(SMK_TARGETS)}` | {smk[0]:.2f} s (median {smk[1]:.2f}) "
+              f"| <= {TARGET_S:.0f} s {'ok' if smk[0] <= TARGET_S else 'MISSED'} |")
+        print(f"| no-op `dvc repro {' '.join(STAGES)}` | {rep[0]:.2f} s (median {rep[1]:.2f}) "
+              f"| <= {TARGET_S:.0f} s {'ok' if rep[0] <= TARGET_S else 'MISSED'} |")
+        print(f"| new volume session ({n_bags} bags): `dvc add` | {t_add:.1f} s | |")
+        print(f"| new volume session: `dvc repro` (ingest {n_bags} new bags, rebuild the scene) | {t_new:.1f} s | |")
+        print(f"| full rebuild of the volume scene, both sessions (`dvc repro -f -s volume`, "
+              f"shards removed) | {t_full:.1f} s | |")
+        print(f"| new session / full rebuild | {(t_add + t_new) / t_full:.0%} | |")
+        print(f"(recording the new session with the simulator took {t_record:.1f} s, not counted)")
+    finally:
+        if args.keep:
+            print(f"kept {root}")
+        else:
+            shutil.rmtree(root, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
