@@ -56,10 +56,11 @@ def job_counts(out: str) -> dict[str, int]:
 
 
 def tracked_files(wd: Path) -> dict[str, bytes]:
-    """Every file under raw/ and results/ (the logs are not artefacts: not tracked, not shared)."""
+    """Every file under raw/ and results/ (the logs and the resume checkpoints last.pt are not
+    artefacts: not tracked, not shared)."""
     return {str(p.relative_to(wd)): p.read_bytes() for top in ("raw", "results") for p in sorted((wd / top).rglob("*"))
             if p.is_file() and not str(p.relative_to(wd)).startswith("results/logs/")
-            and p.name not in (".gitignore", "README.md") and p.suffix != ".dvc"}
+            and p.name not in (".gitignore", "README.md", "last.pt") and p.suffix != ".dvc"}   # last.pt: .dvcignore
 
 
 @pytest.fixture(scope="module")
