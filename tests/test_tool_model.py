@@ -195,7 +195,8 @@ def assert_same_weights(a: dict, b: dict) -> None:
 
 
 class CrashingData:
-    """Wraps a dataset; the training iterator of epoch ``crash_epoch`` dies after one batch."""
+    """Wraps a dataset; the training iterator of epoch ``crash_epoch`` dies after one batch.
+    Each epoch makes two shuffled passes: training, then the BatchNorm re-estimation."""
 
     def __init__(self, data, crash_epoch: int):
         self.data, self.crash_epoch, self.train_epochs = data, crash_epoch, 0
@@ -210,7 +211,7 @@ class CrashingData:
         if shuffle:
             self.train_epochs += 1
         it = self.data.batches(idx, batch_size, shuffle, seed)
-        if shuffle and self.train_epochs == self.crash_epoch:
+        if shuffle and self.train_epochs == 2 * self.crash_epoch - 1:
             yield next(it)
             raise KeyboardInterrupt("simulated crash")
         yield from it

@@ -52,4 +52,6 @@ def train_and_predict(scene: str, data_dir: Path, split_path: Path, out_dir: Pat
               "resumed_from_epoch": summary["resumed_from_epoch"], "parameters": summary["parameters"],
               "latency_ms": latency_ms(model, image_size, n=20), "predict_s": predict_s, "device": summary["device"]}
     write_json(out_dir / "eval.json", result)
+    # last.pt (weights + Adam state, 3x best.pt) only serves to resume an interrupted run
+    (out_dir / "last.pt").unlink(missing_ok=True)
     return result
