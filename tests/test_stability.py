@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from test_volume_models import _baseline_data
 from tactilepipe.errors import ConfigError, InputError, TactilepipeError
 from tactilepipe.metrics import (R2_CONSTANT, R2_EMPTY, R2_NONFINITE, format_metric, r2_detail,
                                  r2_score)
@@ -502,15 +503,7 @@ def test_tool_training_stops_on_an_inf_label_naming_epoch_and_batch(tmp_path):
 # ================================ mu optimum on the edge =========================================
 
 def _formula_data(mu_true: float, p: dict) -> tuple[pd.DataFrame, list[dict]]:
-    rng = np.random.default_rng(0)
-    rows = []
-    for v in np.arange(0.0, 301.0, 50.0):
-        for i in range(4):
-            fz = 6.0 * (1 + 0.1 * rng.standard_normal(30))
-            fy = (v + p["container_mass_g"]) * p["gravity"] / 1000.0 - mu_true * fz
-            rows.append(pd.DataFrame({"lift": f"v{v:g}_{i}", "volume_ml": v, "set": "main", "fy0": fy, "fz0": fz}))
-    data = pd.concat(rows, ignore_index=True)
-    return data, make_folds(data.drop_duplicates("lift"), 3, 3, 1, seed=0)
+    return _baseline_data(mu_true, p, seed=0)      # samples that follow the baseline formula exactly
 
 
 @pytest.mark.parametrize("mu_true,side", [(0.55, "upper"), (0.02, "lower")])
