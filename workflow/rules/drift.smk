@@ -7,6 +7,7 @@ rule drift_report:
     output:
         reported(DRIFT_TARGETS, "drift"),
         series=f"{DRIFT}/drift_series.csv",
+        fits=f"{DRIFT}/fits.csv",
     params:
         drift=P["drift"],
     resources:

@@ -11,9 +11,12 @@ The model picks its own channels, so every variant is fed by the same loader::
                  (depth 18, 34) or Bottleneck (50, 101); global average pool; fc removed
     head         Linear(512 | 2048 -> 1024), ReLU, Linear(1024 -> 512), ReLU, Linear(512 -> 1)
 
-Output: (b,) normalised force. GAM as the public code has it: channel branch
-Linear(C->C/4)-ReLU-Linear(C/4->C) applied per pixel and multiplied in (no sigmoid); spatial branch
-Conv7x7(C->C/4)-BN-ReLU-Conv7x7(C/4->C)-BN-sigmoid multiplied in. Kaiming initialisation.
+Output: (b,) normalised force. GAM: channel branch Linear(C->C/4)-ReLU-Linear(C/4->C) applied per
+pixel, then sigmoid, multiplied in; spatial branch Conv7x7(C->C/4)-BN-ReLU-Conv7x7(C/4->C)-BN-sigmoid
+multiplied in. The public code has no sigmoid on the channel branch; with it absent the two gates
+in a row made the features a 4th-degree polynomial of the input and, in eval mode, they collapsed
+to ~1e-7 (measured), so we gate as the GAM paper does. Kaiming initialisation, then zero-init of
+each residual block's last BN and of the output layer (see _kaiming_init).
 
 Parameter counts do not depend on the image size (the network is fully convolutional up to the
 global pool). ``full`` at depth 101: 57,297,665 parameters (the paper: about 57 M).
@@ -68,7 +71,7 @@ DEPTHS: dict[int, tuple[str, list[int]]] = {
 
 
 class GAM(nn.Module):
-    """Global Attention Mechanism as in the public code (channel branch without sigmoid)."""
+    """Global Attention Mechanism (both branches sigmoid-gated; see the module docstring)."""
 
     def __init__(self, channels: int, rate: int = 4):
         super().__init__()
