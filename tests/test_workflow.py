@@ -115,6 +115,20 @@ def test_a_scene_pulls_in_only_its_rules(tmp_path: Path):
         assert rule not in out, rule
 
 
+def test_plain_snakemake_uses_the_default_profile(tmp_path: Path):
+    # Snakemake looks for profiles/default next to the Snakefile or in the working directory, not
+    # in workflow/profiles: the top-level `profiles` link is what makes a bare `snakemake --cores 2`
+    # record input checksums (max-checksum-file-size) and rerun incomplete jobs as documented
+    assert (REPO / "profiles").is_symlink() and (REPO / "profiles").resolve() == (REPO / "workflow/profiles").resolve()
+    wd = copy_project(tmp_path)
+    proc = snakemake(wd, "-n", "--config", "scale=smoke", "scenes=[drift]")
+    assert "Using workflow specific profile" not in proc.stdout + proc.stderr   # no link in the copy yet
+    (wd / "profiles").symlink_to("workflow/profiles")
+    proc = snakemake(wd, "-n", "--config", "scale=smoke", "scenes=[drift]")
+    out = proc.stdout + proc.stderr
+    assert "Using workflow specific profile profiles/default" in out
+
+
 @pytest.mark.parametrize("override, expected", [
     (["scale=huge"], "unknown scale 'huge'"),
     (["folds={n_folds: two, train_lifts_per_volume: 3, test_lifts_per_volume: 2}"], "folds.n_folds"),
