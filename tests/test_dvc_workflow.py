@@ -2,7 +2,9 @@
 temporary git repository with a local-directory remote, at the smoke scale:
 
 1. a new recording session: `dvc add`, `dvc repro` re-runs only the volume stage and ingests only
-   the new bags; `dvc metrics diff` shows the change against the last commit;
+   the new bags; `dvc metrics diff` shows the change against the last commit; the same for a new
+   tool-rig session (only tool_data and tool_models re-run, only the new trials are ingested) and
+   for a new drift experiment (only the drift stage re-runs);
 2. experiments: `dvc exp run -S ...`, `dvc exp show --md`, `dvc exp diff`, `dvc params diff`;
 3. sharing: `dvc push`, a fresh `git clone` + `dvc pull` is byte-identical and Snakemake has
    nothing to do;
@@ -26,6 +28,8 @@ pytestmark = pytest.mark.integration
 
 STAGES = ["simulate_volume", "simulate_drift", "volume", "drift", "simulate_tool", "tool_data", "tool_models"]
 NEW = "s2026-05-01"        # the "new recording session"
+NEW_TOOL = "t2026-05-02"   # a new tool-rig session (native layout, like real recordings)
+NEW_DRIFT = "d2026-05-03"  # a new drift experiment (bags named {unloaded,loaded}_tMM.bag)
 
 
 def dvc(wd: Path, *args: str, check: bool = True):
@@ -152,6 +156,89 @@ def test_new_session_reruns_only_the_volume_stage_and_ingests_only_new_bags(repo
     assert "up to date" in dvc(wd, "status").stdout.lower()
 
 
+@pytest.fixture(scope="module")
+def new_tool_session(repo, new_session) -> dict:
+    """Step 1 for the tool scenes: a new session of the DIGIT + Nano17 rig (its native layout:
+    frames, serial log, meta.json per trial, nano17.cal) is copied in, versioned and reproduced."""
+    wd = repo["wd"]
+    shard_dir = wd / "results/tool/shards/sim-smoke"
+    old_shards = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in shard_dir.glob("*.parquet")}
+    rig = repo["root"] / "rig"
+    run([str(BIN / "tactilepipe"), "simulate", "tool", "--scale", "smoke", "--override", '{"seed": 7}',
+         "--out-dir", str(rig / NEW_TOOL), "--jobs", "2"], wd)
+    shutil.copytree(rig / NEW_TOOL, wd / "raw/tool" / NEW_TOOL)
+    dvc(wd, "add", f"raw/tool/{NEW_TOOL}")
+    params = (wd / "params.yaml").read_text()
+    assert 'tool_sessions: ["sim-{scale}"]' in params
+    (wd / "params.yaml").write_text(params.replace('tool_sessions: ["sim-{scale}"]',
+                                                   f'tool_sessions: ["sim-{{scale}}", "{NEW_TOOL}"]'))
+    out = dvc_out(wd, "repro")
+    metrics_diff = json.loads(dvc(wd, "metrics", "diff", "--json").stdout)
+    n_new = len(list((wd / "raw/tool" / NEW_TOOL).glob("*/meta.json")))
+    git(wd, "add", "params.yaml", "dvc.lock", f"raw/tool/{NEW_TOOL}.dvc", "raw/tool/.gitignore",
+        "results/tool_normal/metrics.json", "results/tool_shear/metrics.json")
+    git(wd, "commit", "-q", "-m", f"new tool session {NEW_TOOL}")
+    dvc(wd, "push")
+    return {"out": out, "diff": metrics_diff, "old_shards": old_shards, "n_new": n_new}
+
+
+def test_new_tool_session_reruns_only_the_tool_stages_and_ingests_only_new_trials(repo, new_tool_session):
+    wd, out = repo["wd"], new_tool_session["out"]
+    assert ran_stages(out) == {"tool_data", "tool_models"}, out[-3000:]
+    for stage in set(STAGES) - {"tool_data", "tool_models"}:
+        assert f"Stage '{stage}' didn't change, skipping" in out, stage
+    counts = job_counts(out)
+    assert new_tool_session["n_new"] >= 12
+    assert counts["ingest_tool"] == new_tool_session["n_new"], counts          # only the new trials
+    assert counts["tool_dataset"] == 2 and counts["tool_train"] == 2 * 6 and "simulate_tool" not in counts
+    for name, (mtime, data) in new_tool_session["old_shards"].items():         # earlier shards untouched
+        p = wd / "results/tool/shards/sim-smoke" / name
+        assert p.stat().st_mtime_ns == mtime and p.read_bytes() == data, name
+    assert len(list((wd / f"results/tool/shards/{NEW_TOOL}").glob("*.parquet"))) == new_tool_session["n_new"]
+    # the metrics diff against the last commit: both tool scenes changed, nothing else
+    diff = new_tool_session["diff"]
+    assert set(diff) == {"results/tool_normal/metrics.json", "results/tool_shear/metrics.json"}, diff
+    assert any(k.startswith("full.") for k in diff["results/tool_normal/metrics.json"]), diff
+    assert "up to date" in dvc(wd, "status").stdout.lower()
+
+
+@pytest.fixture(scope="module")
+def new_drift_session(repo, new_tool_session) -> dict:
+    """Step 1 for the drift scene: a new 30-min drift experiment is copied in and analysed instead
+    of the simulated one."""
+    wd = repo["wd"]
+    rig = repo["root"] / "rig"
+    run([str(BIN / "tactilepipe"), "simulate", "drift", "--scale", "smoke", "--override", '{"seed": 7}',
+         "--out-dir", str(rig / NEW_DRIFT), "--jobs", "2"], wd)
+    shutil.copytree(rig / NEW_DRIFT, wd / "raw/drift" / NEW_DRIFT)
+    dvc(wd, "add", f"raw/drift/{NEW_DRIFT}")
+    params = (wd / "params.yaml").read_text()
+    assert 'drift_session: "sim-{scale}"' in params
+    (wd / "params.yaml").write_text(params.replace('drift_session: "sim-{scale}"', f'drift_session: "{NEW_DRIFT}"'))
+    out = dvc_out(wd, "repro")
+    metrics_diff = json.loads(dvc(wd, "metrics", "diff", "--json").stdout)
+    n_new = len(list((wd / "raw/drift" / NEW_DRIFT).glob("*.bag")))
+    git(wd, "add", "params.yaml", "dvc.lock", f"raw/drift/{NEW_DRIFT}.dvc", "raw/drift/.gitignore",
+        "results/drift/metrics.json")
+    git(wd, "commit", "-q", "-m", f"new drift session {NEW_DRIFT}")
+    dvc(wd, "push")
+    return {"out": out, "diff": metrics_diff, "n_new": n_new}
+
+
+def test_new_drift_session_reruns_only_the_drift_stage(repo, new_drift_session):
+    wd, out = repo["wd"], new_drift_session["out"]
+    assert ran_stages(out) == {"drift"}, out[-3000:]
+    counts = job_counts(out)
+    assert new_drift_session["n_new"] >= 7
+    assert counts["ingest_papillarray"] == new_drift_session["n_new"], counts
+    assert counts["drift_report"] == 1 and "simulate_drift" not in counts
+    assert len(list((wd / f"results/drift/shards/{NEW_DRIFT}").glob("*.parquet"))) == new_drift_session["n_new"]
+    diff = new_drift_session["diff"]
+    assert set(diff) == {"results/drift/metrics.json"}, diff
+    assert any(k.startswith("drift_30min_n") for k in diff["results/drift/metrics.json"]), diff
+    assert "up to date" in dvc(wd, "status").stdout.lower()
+
+
 def test_experiments_rerun_only_the_stages_of_the_changed_params(repo, new_session):
     wd = repo["wd"]
     out = dvc_out(wd, "exp", "run", "-n", "mu-lr", "-S", "baseline.mu_max=0.35", "-S", "tool_train.lr=0.0005")
@@ -173,7 +260,8 @@ def test_experiments_rerun_only_the_stages_of_the_changed_params(repo, new_sessi
     assert "up to date" in dvc(wd, "status").stdout.lower()
 
 
-def test_push_clone_pull_is_byte_identical_and_snakemake_has_nothing_to_do(repo, new_session):
+def test_push_clone_pull_is_byte_identical_and_snakemake_has_nothing_to_do(repo, new_session, new_tool_session,
+                                                                          new_drift_session):
     wd, clone = repo["wd"], repo["root"] / "clone"
     dvc(wd, "push")
     assert any(repo["remote"].rglob("*"))

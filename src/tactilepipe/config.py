@@ -66,6 +66,7 @@ def resolve(raw: dict, source: str = "params.yaml", overrides: dict | None = Non
     validate({**resolved, "scales": raw["scales"]}, f"{source} (scale '{scale}')")
     for key in ("volume_sessions", "tool_sessions"):
         resolved[key] = [s.replace("{scale}", scale) for s in resolved[key]]
+    resolved["drift_session"] = resolved["drift_session"].replace("{scale}", scale)
     _check_consistency(resolved, source)
     return resolved
 

@@ -54,7 +54,7 @@ atexit.register(_print_estimate_after_dry_run)
 LOGS = "results/logs"
 VOLUME = "results/volume"
 DRIFT = "results/drift"
-DRIFT_SESSION = f"sim-{P['scale']}"
+DRIFT_SESSION = P["drift_session"]
 
 
 def is_simulated(session):
@@ -72,8 +72,18 @@ def volume_shards():
     return [f"{VOLUME}/shards/{s}/{stem}.parquet" for s in P["volume_sessions"] for stem in volume_bag_stems(s)]
 
 
+def drift_bag_stems(session):
+    """Bags of the drift session: planned by the simulator, or the .bag files in its folder."""
+    if is_simulated(session):
+        return drift_plan(P)
+    stems = sorted(p.stem for p in Path(f"raw/drift/{session}").glob("*.bag"))
+    if not stems:
+        raise WorkflowError(f"drift_session '{session}': no .bag files in raw/drift/{session}/")
+    return stems
+
+
 def drift_shards():
-    return [f"{DRIFT}/shards/{DRIFT_SESSION}/{name}.parquet" for name in drift_plan(P)]
+    return [f"{DRIFT}/shards/{DRIFT_SESSION}/{name}.parquet" for name in drift_bag_stems(DRIFT_SESSION)]
 
 
 VOLUME_TARGETS = [
