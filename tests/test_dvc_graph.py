@@ -160,7 +160,7 @@ def _mutate(wd: Path, stage: str, key: str, remove: str) -> Path:
 
 
 def test_a_missing_dep_is_caught(smoke_copy: Path):
-    problems = check_agreement(smoke_copy, _mutate(smoke_copy, "drift", "deps", "raw/drift/sim-${scale}"))
+    problems = check_agreement(smoke_copy, _mutate(smoke_copy, "drift", "deps", "raw/drift"))
     assert any("stage drift: rule ingest_papillarray reads raw/drift/sim-smoke/" in p and "simulate_drift" in p
                for p in problems), problems
 
