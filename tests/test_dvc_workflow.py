@@ -107,31 +107,38 @@ def test_every_generated_file_is_a_declared_out(repo):
     assert (wd / ".dvc/config").read_text().count("reflink,copy") == 1
 
 
+def take_in_session(repo: dict, scene: str, session: str, simulate_flags: list[str], param_line: str,
+                    new_param_line: str, metrics: list[str]) -> dict:
+    """A session "recorded on the rig" (the simulator with another seed, somewhere else) is copied
+    into raw/<scene>/, `dvc add`ed, named in params.yaml, reproduced, committed and pushed.
+    Returns dvc repro's output and the metrics diff (JSON and Markdown) against the last commit."""
+    wd, rig = repo["wd"], repo["root"] / "rig"
+    run([str(BIN / "tactilepipe"), "simulate", scene, "--scale", "smoke", "--override", '{"seed": 7}',
+         "--out-dir", str(rig / session), *simulate_flags, "--jobs", "2"], wd)
+    shutil.copytree(rig / session, wd / "raw" / scene / session)
+    dvc(wd, "add", f"raw/{scene}/{session}")
+    params = (wd / "params.yaml").read_text()
+    assert param_line in params
+    (wd / "params.yaml").write_text(params.replace(param_line, new_param_line))
+    out = dvc_out(wd, "repro")
+    taken = {"out": out, "diff": json.loads(dvc(wd, "metrics", "diff", "--json").stdout),
+             "diff_md": dvc(wd, "metrics", "diff", "--md").stdout}
+    git(wd, "add", "params.yaml", "dvc.lock", f"raw/{scene}/{session}.dvc", f"raw/{scene}/.gitignore", *metrics)
+    git(wd, "commit", "-q", "-m", f"new {scene} session {session}")
+    dvc(wd, "push")
+    return taken
+
+
 @pytest.fixture(scope="module")
 def new_session(repo) -> dict:
     """Step 1: a new volume session recorded elsewhere is copied in, versioned and reproduced."""
     wd = repo["wd"]
     shard_dir = wd / "results/volume/shards/sim-smoke"
     old_shards = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in shard_dir.glob("*.parquet")}
-    # "recorded on the rig": the simulator with another seed writes bags + lifts.csv somewhere else
-    rig = repo["root"] / "rig"
-    run([str(BIN / "tactilepipe"), "simulate", "volume", "--scale", "smoke", "--override", '{"seed": 7}',
-         "--out-dir", str(rig / NEW), "--labels", "--jobs", "2"], wd)
-    shutil.copytree(rig / NEW, wd / "raw/volume" / NEW)
-    dvc(wd, "add", f"raw/volume/{NEW}")
-    params = (wd / "params.yaml").read_text()
-    assert 'volume_sessions: ["sim-{scale}"]' in params
-    (wd / "params.yaml").write_text(params.replace('volume_sessions: ["sim-{scale}"]',
-                                                   f'volume_sessions: ["sim-{{scale}}", "{NEW}"]'))
-    out = dvc_out(wd, "repro")
-    metrics_diff = json.loads(dvc(wd, "metrics", "diff", "--json").stdout)
-    metrics_diff_md = dvc(wd, "metrics", "diff", "--md").stdout
+    taken = take_in_session(repo, "volume", NEW, ["--labels"], 'volume_sessions: ["sim-{scale}"]',
+                            f'volume_sessions: ["sim-{{scale}}", "{NEW}"]', ["results/volume/metrics.json"])
     n_new = len(list((wd / "raw/volume" / NEW).glob("*.bag")))
-    git(wd, "add", "params.yaml", "dvc.lock", f"raw/volume/{NEW}.dvc", "raw/volume/.gitignore",
-        "results/volume/metrics.json")
-    git(wd, "commit", "-q", "-m", f"new session {NEW}")
-    dvc(wd, "push")
-    return {"out": out, "diff": metrics_diff, "diff_md": metrics_diff_md, "old_shards": old_shards, "n_new": n_new}
+    return {**taken, "old_shards": old_shards, "n_new": n_new}
 
 
 def test_new_session_reruns_only_the_volume_stage_and_ingests_only_new_bags(repo, new_session):
@@ -163,23 +170,11 @@ def new_tool_session(repo, new_session) -> dict:
     wd = repo["wd"]
     shard_dir = wd / "results/tool/shards/sim-smoke"
     old_shards = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in shard_dir.glob("*.parquet")}
-    rig = repo["root"] / "rig"
-    run([str(BIN / "tactilepipe"), "simulate", "tool", "--scale", "smoke", "--override", '{"seed": 7}',
-         "--out-dir", str(rig / NEW_TOOL), "--jobs", "2"], wd)
-    shutil.copytree(rig / NEW_TOOL, wd / "raw/tool" / NEW_TOOL)
-    dvc(wd, "add", f"raw/tool/{NEW_TOOL}")
-    params = (wd / "params.yaml").read_text()
-    assert 'tool_sessions: ["sim-{scale}"]' in params
-    (wd / "params.yaml").write_text(params.replace('tool_sessions: ["sim-{scale}"]',
-                                                   f'tool_sessions: ["sim-{{scale}}", "{NEW_TOOL}"]'))
-    out = dvc_out(wd, "repro")
-    metrics_diff = json.loads(dvc(wd, "metrics", "diff", "--json").stdout)
+    taken = take_in_session(repo, "tool", NEW_TOOL, [], 'tool_sessions: ["sim-{scale}"]',
+                            f'tool_sessions: ["sim-{{scale}}", "{NEW_TOOL}"]',
+                            ["results/tool_normal/metrics.json", "results/tool_shear/metrics.json"])
     n_new = len(list((wd / "raw/tool" / NEW_TOOL).glob("*/meta.json")))
-    git(wd, "add", "params.yaml", "dvc.lock", f"raw/tool/{NEW_TOOL}.dvc", "raw/tool/.gitignore",
-        "results/tool_normal/metrics.json", "results/tool_shear/metrics.json")
-    git(wd, "commit", "-q", "-m", f"new tool session {NEW_TOOL}")
-    dvc(wd, "push")
-    return {"out": out, "diff": metrics_diff, "old_shards": old_shards, "n_new": n_new}
+    return {**taken, "old_shards": old_shards, "n_new": n_new}
 
 
 def test_new_tool_session_reruns_only_the_tool_stages_and_ingests_only_new_trials(repo, new_tool_session):
@@ -206,23 +201,10 @@ def test_new_tool_session_reruns_only_the_tool_stages_and_ingests_only_new_trial
 def new_drift_session(repo, new_tool_session) -> dict:
     """Step 1 for the drift scene: a new 30-min drift experiment is copied in and analysed instead
     of the simulated one."""
-    wd = repo["wd"]
-    rig = repo["root"] / "rig"
-    run([str(BIN / "tactilepipe"), "simulate", "drift", "--scale", "smoke", "--override", '{"seed": 7}',
-         "--out-dir", str(rig / NEW_DRIFT), "--jobs", "2"], wd)
-    shutil.copytree(rig / NEW_DRIFT, wd / "raw/drift" / NEW_DRIFT)
-    dvc(wd, "add", f"raw/drift/{NEW_DRIFT}")
-    params = (wd / "params.yaml").read_text()
-    assert 'drift_session: "sim-{scale}"' in params
-    (wd / "params.yaml").write_text(params.replace('drift_session: "sim-{scale}"', f'drift_session: "{NEW_DRIFT}"'))
-    out = dvc_out(wd, "repro")
-    metrics_diff = json.loads(dvc(wd, "metrics", "diff", "--json").stdout)
-    n_new = len(list((wd / "raw/drift" / NEW_DRIFT).glob("*.bag")))
-    git(wd, "add", "params.yaml", "dvc.lock", f"raw/drift/{NEW_DRIFT}.dvc", "raw/drift/.gitignore",
-        "results/drift/metrics.json")
-    git(wd, "commit", "-q", "-m", f"new drift session {NEW_DRIFT}")
-    dvc(wd, "push")
-    return {"out": out, "diff": metrics_diff, "n_new": n_new}
+    taken = take_in_session(repo, "drift", NEW_DRIFT, [], 'drift_session: "sim-{scale}"',
+                            f'drift_session: "{NEW_DRIFT}"', ["results/drift/metrics.json"])
+    n_new = len(list((repo["wd"] / "raw/drift" / NEW_DRIFT).glob("*.bag")))
+    return {**taken, "n_new": n_new}
 
 
 def test_new_drift_session_reruns_only_the_drift_stage(repo, new_drift_session):
