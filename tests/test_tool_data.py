@@ -142,6 +142,20 @@ def test_trial_split_keeps_whole_trials_together(samples):
     assert 0.6 < frac < 0.8
 
 
+def test_trial_split_is_stratified_by_tool(samples):
+    # 6 trials per tool: each tool has one test and one validation trial, and four for training
+    split = make_split(samples, "trial", "fz", seed=3)
+    for k, n in (("train", 4), ("validation", 1), ("test", 1)):
+        rows = samples.iloc[split[k]]
+        assert rows.groupby("tool")["trial"].nunique().to_dict() == dict.fromkeys(samples["tool"].unique(), n), k
+    # with fewer than 3 trials for some tool it cannot be stratified: whole trials, unstratified
+    few = samples[~samples["trial"].str.contains("spatula_p[12]")].reset_index(drop=True)
+    split = make_split(few, "trial", "fz", seed=3)
+    trials = [set(few["trial"].iloc[split[k]]) for k in ("train", "validation", "test")]
+    assert all(trials) and not (trials[0] & trials[1]) and not (trials[0] & trials[2]) and not (trials[1] & trials[2])
+    assert set().union(*trials) == set(few["trial"])
+
+
 def test_frame_split_leaks_trials_across_splits(samples):
     split = make_split(samples, "frame", "fz", seed=1)
     train_trials = set(samples["trial"].iloc[split["train"]])

@@ -2,7 +2,9 @@
 
 - ``frame``: the public code's random frame-level 70/15/15. Adjacent frames of one press land in
   different splits, so test frames have near-copies in training: kept only for comparison.
-- ``trial`` (default): whole trials go to one split, 70/15/15 by frame count.
+- ``trial`` (default): whole trials go to one split, 70/15/15 by frame count, stratified by tool
+  when every tool has at least 3 trials (each tool then has trials in every split, so the per-tool
+  errors are measured on every tool and no tool is learnt from one or two grasps).
 - ``loto``: leave one tool out (the held-out tool is the test set).
 - ``lopo``: leave one grasp pose out (one pose of every tool is the test set).
 Label normalisation statistics are computed from the training split only.
@@ -37,6 +39,19 @@ def _group_split(groups: pd.Series, fractions: tuple[float, float, float], rng) 
     return tuple(np.flatnonzero(part == k) for k in range(3))
 
 
+def _trial_split(samples: pd.DataFrame, fractions, rng) -> tuple[np.ndarray, ...]:
+    """Whole trials to train/validation/test; within each tool when every tool has >= 3 trials."""
+    per_tool = samples.groupby("tool")["trial"].nunique()
+    if per_tool.min() < 3:            # too few trials to give every tool a test and a validation trial
+        return _group_split(samples["trial"], fractions, rng)
+    parts = [[], [], []]
+    for tool in sorted(per_tool.index):
+        rows = np.flatnonzero(samples["tool"].to_numpy() == tool)
+        for k, idx in enumerate(_group_split(samples["trial"].iloc[rows].reset_index(drop=True), fractions, rng)):
+            parts[k].append(rows[idx])
+    return tuple(np.sort(np.concatenate(p)) for p in parts)
+
+
 def label_stats(labels: np.ndarray) -> dict:
     return {"min": float(labels.min()), "max": float(labels.max()), "mean": float(labels.mean()),
             "std": float(labels.std()) or 1.0}
@@ -50,7 +65,7 @@ def make_split(samples: pd.DataFrame, name: str, label: str, seed: int, fraction
         a, b = int(fractions[0] * len(idx)), int((fractions[0] + fractions[1]) * len(idx))
         train, val, test = np.sort(idx[:a]), np.sort(idx[a:b]), np.sort(idx[b:])
     elif name == "trial":
-        train, val, test = _group_split(samples["trial"], fractions, rng)
+        train, val, test = _trial_split(samples, fractions, rng)
     elif name == "loto":
         tools = sorted(samples["tool"].unique())
         if holdout_tool not in tools:

@@ -101,6 +101,12 @@ def resolve_device(name: str) -> torch.device:
     return dev
 
 
+def make_optimizer(model: nn.Module, lr: float) -> torch.optim.Adam:
+    # The fused kernel updates all ~24 M parameters in one pass: the same Adam arithmetic, 5-18 %
+    # more frame pairs/s on 2 CPU cores than the per-tensor loop (the update is ~12 % of a step).
+    return torch.optim.Adam(model.parameters(), lr=lr, fused=True)
+
+
 def _uses_channels_last(model: nn.Module) -> bool:
     # a conv weight whose strides tell the two formats apart (not 1 input channel or a 1x1 kernel)
     w = next((p for p in model.parameters() if p.ndim == 4 and p.shape[1] > 1 and p.shape[2] > 1), None)
@@ -244,7 +250,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
         if cfg.channels_last:
             model = model.to(memory_format=torch.channels_last)
         meta["parameters"] = count_parameters(model)
-        opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+        opt = make_optimizer(model, cfg.lr)
         scaler = torch.amp.GradScaler("cuda", enabled=use_amp)
         state = {"epoch": 0, "best_val_loss": math.inf, "best_epoch": 0, "bad_epochs": 0,
                  "early_stopped": False, "history": []}
@@ -459,7 +465,7 @@ def train_throughput(variant: str = "full", depth: int = 18, image_size: int = 6
         model = build_model(variant, depth, image_size)
         if channels_last:
             model = model.to(memory_format=torch.channels_last)
-        opt = torch.optim.Adam(model.parameters(), lr=2e-4)
+        opt = make_optimizer(model, 2e-4)
         x = _to_input(torch.rand(batch_size, 4, image_size, image_size), torch.device("cpu"), channels_last)
         y = torch.rand(batch_size)
         model.train()
