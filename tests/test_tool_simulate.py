@@ -132,6 +132,16 @@ def test_same_seed_gives_byte_identical_files_and_another_seed_does_not(written,
     assert a["nano17.cal"] != c["nano17.cal"]
 
 
+def test_rewriting_a_trial_with_fewer_frames_leaves_no_old_frames(tmp_path, normal_spec, params):
+    n = params["simulate_tool"]["frames_per_trial"]
+    shorter = {**params, "simulate_tool": {**params["simulate_tool"], "frames_per_trial": n // 2}}
+    ts.write_trial(tmp_path, normal_spec, params)
+    ts.write_trial(tmp_path, normal_spec, shorter)
+    for sensor in layout.SENSORS:
+        names = sorted(q.name for q in (tmp_path / normal_spec.name / sensor).glob("*.png"))
+        assert names == [layout.FRAME_NAME.format(i) for i in range(n // 2)]
+
+
 def test_written_trial_follows_the_layout(written, normal_spec, params):
     tdir = written["a"] / normal_spec.name
     n = params["simulate_tool"]["frames_per_trial"]
