@@ -605,15 +605,13 @@ def write_trial(session_dir: str | Path, spec: TrialSpec, params: dict) -> None:
     for s, name in enumerate(layout.SENSORS):
         sdir = tdir / name
         sdir.mkdir(parents=True, exist_ok=True)
-        written = set()
-        for i in range(trial.n_frames):
-            written.add(layout.FRAME_NAME.format(i))
-            _write_png(sdir / layout.FRAME_NAME.format(i), trial.frame(s, i))
+        frame_names = [layout.FRAME_NAME.format(i) for i in range(trial.n_frames)]
+        for i, frame_name in enumerate(frame_names):
+            _write_png(sdir / frame_name, trial.frame(s, i))
         # a re-simulation with fewer frames per trial must not leave the old run's later frames
         # behind: they are not in frames.csv, but DVC would version them and they waste the disk
-        for old in sdir.glob("frame_*.png"):
-            if old.name not in written:
-                old.unlink()
+        for stale in set(q.name for q in sdir.glob("frame_*.png")) - set(frame_names):
+            (sdir / stale).unlink()
         write_text(sdir / "frames.csv", trial.frames_csv(s))
     write_text(tdir / "force.log", "\n".join(trial.serial()["lines"]) + "\n")
     trial.meta().write(tdir)
