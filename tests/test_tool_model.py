@@ -14,9 +14,9 @@ import torch
 
 from tactilepipe.errors import TactilepipeError
 from tactilepipe.tool.loader import ToolFrames
-from tactilepipe.tool.model import DEPTHS, MIN_IMAGE_SIZE, VARIANTS, build_model, count_parameters
+from tactilepipe.tool.model import DEPTHS, MIN_IMAGE_SIZE, VARIANTS, TrimmedConv2d, build_model, count_parameters
 from tactilepipe.tool.splits import label_stats
-from tactilepipe.tool.train import TrainConfig, latency_ms, load_model, predict, train
+from tactilepipe.tool.train import TrainConfig, latency_ms, load_model, predict, scheduled_lr, train
 
 # Exact counts of this implementation (independent of the image size); the paper says "about 57 M"
 # for the full model on ResNet-101.
@@ -93,6 +93,38 @@ def test_channels_last_gives_the_same_output():
         model = model.to(memory_format=torch.channels_last)
         b = model(x.contiguous(memory_format=torch.channels_last))
     assert torch.allclose(a, b, atol=1e-4, rtol=1e-4)
+
+
+@pytest.mark.parametrize("kernel,stride", [(1, 1), (3, 1), (3, 2), (5, 1), (7, 1), (7, 2)])
+def test_trimmed_conv_equals_the_full_convolution(kernel, stride):
+    # every map size from 1 px (only the centre tap meets data) to larger than the kernel (nothing
+    # to trim); output, input gradient and weight gradient must be those of the untrimmed conv
+    torch.manual_seed(kernel * 10 + stride)
+    conv = TrimmedConv2d(5, 6, kernel, stride, kernel // 2)
+    for fmt in (torch.contiguous_format, torch.channels_last):
+        conv = conv.to(memory_format=fmt)
+        for size in range(1, 10):
+            x = torch.randn(3, 5, size, size).contiguous(memory_format=fmt).requires_grad_()
+            y = conv(x)
+            ref = torch.nn.functional.conv2d(x, conv.weight, conv.bias, stride, kernel // 2)
+            assert y.shape == ref.shape
+            torch.testing.assert_close(y, ref, atol=1e-5, rtol=1e-5)
+            g = torch.randn_like(ref)
+            got = torch.autograd.grad(y, (x, conv.weight, conv.bias), g)
+            want = torch.autograd.grad(ref, (x, conv.weight, conv.bias), g)
+            for a, b in zip(got, want):
+                torch.testing.assert_close(a, b, atol=1e-5, rtol=1e-5)
+            assert got[1].stride() == conv.weight.stride()     # the gradient keeps the weight's layout
+    # where nothing is trimmed the weight's outer taps do meet data: their gradient is not zero
+    x = torch.randn(2, 5, 9, 9)
+    grad_w, = torch.autograd.grad(conv(x).sum(), conv.weight)
+    assert grad_w[:, :, 0, 0].abs().sum() > 0
+    x1 = torch.randn(2, 5, 1, 1)
+    grad_w, = torch.autograd.grad(conv(x1).sum(), conv.weight)
+    c = kernel // 2
+    assert grad_w[:, :, c, c].abs().sum() > 0
+    grad_w[:, :, c, c] = 0                                      # on a 1x1 map only the centre tap meets data
+    assert grad_w.abs().max() == 0
 
 
 def test_variants_read_only_their_channels():
@@ -308,6 +340,27 @@ def test_same_seed_same_weights_and_resume_equals_uninterrupted(tiny, tmp_path):
     with pytest.raises(TactilepipeError, match="different settings"):
         train(data, split, quick_cfg(max_epochs=2, max_train_batches_per_epoch=2, batch_size=16, lr=1e-3),
               tmp_path / "a", progress=False)
+
+
+def test_cosine_schedule_decays_to_zero_and_fixes_max_epochs(tiny, tmp_path):
+    cfg = quick_cfg(lr=2e-4, lr_schedule="cosine")
+    assert scheduled_lr(cfg, 0, 100) == pytest.approx(2e-4)
+    assert scheduled_lr(cfg, 50, 100) == pytest.approx(1e-4)
+    assert scheduled_lr(cfg, 100, 100) == pytest.approx(0.0, abs=1e-12)
+    lrs = [scheduled_lr(cfg, i, 100) for i in range(101)]
+    assert all(a > b for a, b in zip(lrs, lrs[1:]))
+    assert scheduled_lr(quick_cfg(lr=3e-4), 77, 100) == 3e-4       # constant: the paper's
+    data, split = tiny
+    run = dict(max_epochs=3, max_train_batches_per_epoch=2, batch_size=16, lr_schedule="cosine")
+    train(data, split, quick_cfg(**run), tmp_path / "c", progress=False)
+    lr = pd.read_csv(tmp_path / "c" / "history.csv")["lr"].to_numpy()
+    # logged: the rate of each epoch's last step (step 2, 4, 6 of 6)
+    np.testing.assert_allclose(lr, [2e-4 * 0.5 * (1 + np.cos(np.pi * k / 6)) for k in (1, 3, 5)], rtol=1e-9)
+    # with a cosine schedule max_epochs sets the decay: a longer run cannot resume this one
+    with pytest.raises(TactilepipeError, match="max_epochs"):
+        train(data, split, quick_cfg(**{**run, "max_epochs": 4}), tmp_path / "c", progress=False)
+    with pytest.raises(TactilepipeError, match="lr_schedule"):
+        train(data, split, quick_cfg(lr_schedule="step"), tmp_path / "bad", progress=False)
 
 
 def test_early_stopping(tiny, tmp_path):
