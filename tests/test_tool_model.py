@@ -412,3 +412,17 @@ def test_zscore_normalisation_and_bad_settings(tiny, tmp_path):
         train(data, split, quick_cfg(normalise="log"), tmp_path / "bad", progress=False)
     with pytest.raises(TactilepipeError, match="image_size"):
         train(data, split, quick_cfg(image_size=64), tmp_path / "bad", progress=False)
+
+
+def test_over_time_figure_shows_the_strongest_trial_of_each_tool(tmp_path):
+    from tactilepipe.tool.figures_models import over_time, strongest_trial_per_tool
+    rows = []
+    for tool, trial, peak in [("spatula", "s/a", 5.0), ("spatula", "s/b", 9.0), ("knife", "k/a", 3.0),
+                              ("knife", "k/b", 2.0)]:
+        t = np.linspace(0, 3, 30)
+        true = peak * np.sin(np.pi * t / 3)
+        rows.append(pd.DataFrame({"tool": tool, "trial": trial, "t_s": t + 100, "true": true, "pred": true + 0.1}))
+    pred = pd.concat(rows, ignore_index=True)
+    assert strongest_trial_per_tool(pred) == ["k/a", "s/b"]
+    over_time({"full": pred, "single": pred}, "normal", tmp_path / "fig.png")
+    assert (tmp_path / "fig.png").stat().st_size > 10_000

@@ -33,21 +33,37 @@ def sorted_predictions(pred: pd.DataFrame, label: str, out: Path) -> None:
     close(fig)
 
 
-def over_time(preds: dict[str, pd.DataFrame], label: str, out: Path, n_presses: int = 4) -> None:
-    """Fig. 6: predictions over time for several presses of one test trial, per variant."""
+def strongest_trial_per_tool(pred: pd.DataFrame) -> list[str]:
+    """The trial with the highest true force of each tool, tools in name order."""
+    peaks = pred.groupby(["tool", "trial"])["true"].max().reset_index()
+    return peaks.sort_values(["tool", "true"], ascending=[True, False]).groupby("tool").head(1)["trial"].tolist()
+
+
+def over_time(preds: dict[str, pd.DataFrame], label: str, out: Path, gap_s: float = 0.5) -> None:
+    """Fig. 6: predictions over time, per variant, for several presses: the test trial with the
+    highest peak of each tool, laid end to end (trials are a few seconds, one or two presses each)."""
     first = next(iter(preds.values()))
-    trial = first.groupby("trial")["true"].max().idxmax()
-    fig, ax = figure(7.0, 3.2)
-    ref = first[first["trial"] == trial].sort_values("t_s")
-    ax.plot(ref["t_s"], ref["true"], color="k", lw=1.8, label="ground truth")
-    for variant in ("single", "no_ref", "full"):
-        if variant in preds:
-            part = preds[variant][preds[variant]["trial"] == trial].sort_values("t_s")
-            ax.plot(part["t_s"], part["pred"], lw=1.1, color=VARIANT_COLORS[variant], label=VARIANT_LABELS[variant])
-    ax.set_xlabel("time (s)")
+    trials = strongest_trial_per_tool(first)
+    fig, ax = figure(9.0, 3.4)
+    offset = 0.0
+    for i, trial in enumerate(trials):
+        ref = first[first["trial"] == trial].sort_values("t_s")
+        t0 = ref["t_s"].min()
+        ax.plot(ref["t_s"] - t0 + offset, ref["true"], color="k", lw=1.8, label="ground truth" if i == 0 else None)
+        for variant in ("single", "no_ref", "full"):
+            if variant in preds:
+                part = preds[variant][preds[variant]["trial"] == trial].sort_values("t_s")
+                ax.plot(part["t_s"] - t0 + offset, part["pred"], lw=1.1, color=VARIANT_COLORS[variant],
+                        label=VARIANT_LABELS[variant] if i == 0 else None)
+        ax.text(offset, 1.0, ref["tool"].iloc[0].replace("_", " "), transform=ax.get_xaxis_transform(),
+                va="bottom", fontsize=8)
+        offset += ref["t_s"].max() - t0 + gap_s
+        if i < len(trials) - 1:
+            ax.axvline(offset - gap_s / 2, color="0.7", lw=0.8, ls=":")
+    ax.set_xlabel("time within each test trial, trials end to end (s)")
     ax.set_ylabel(f"{label} force (N)")
-    ax.set_title(f"Predictions over time: {trial}")
-    ax.legend(ncols=2, loc="upper right")
+    ax.set_title("Predictions over time: the strongest test trial of each tool", pad=14)
+    ax.legend(ncols=4, loc="upper center", bbox_to_anchor=(0.5, -0.2), frameon=False)
     save_figure(out, fig)
     close(fig)
 
