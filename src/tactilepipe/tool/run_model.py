@@ -23,7 +23,8 @@ def train_and_predict(scene: str, data_dir: Path, split_path: Path, out_dir: Pat
     label, normalise = LABELS[scene]
     data = ToolFrames(data_dir, label).resized(image_size)
     split = json.loads(Path(split_path).read_text())
-    cfg = TrainConfig(variant=variant, depth=depth, image_size=image_size, lr=tp["lr"], lr_schedule=tp["lr_schedule"], batch_size=tp["batch_size"],
+    cfg = TrainConfig(variant=variant, depth=depth, image_size=image_size, lr=tp["lr"], lr_schedule=tp["lr_schedule"],
+                      batch_size=tp["batch_size"],
                       max_epochs=tp["max_epochs"], patience=tp["patience"], seed=seed, device=tp["device"],
                       amp=tp["amp"], num_threads=tp["num_threads"], normalise=normalise,
                       max_train_batches_per_epoch=tp["max_train_batches_per_epoch"] or None,

@@ -112,8 +112,9 @@ def make_optimizer(model: nn.Module, lr: float) -> torch.optim.Adam:
 def scheduled_lr(cfg: TrainConfig, step: int, total_steps: int) -> float:
     """Learning rate of training step ``step`` (0-based) of ``total_steps``. The paper keeps Adam at
     2e-4 for up to 300 epochs; a CPU budget of a few epochs ends while that constant rate still
-    makes the validation loss jump by ~30 % from epoch to epoch (measured at 16 px), so the
-    short scales decay it to 0 along a half cosine, which lets the last epochs settle."""
+    moves the weights far from epoch to epoch (at 16 px the validation loss went 0.019 -> 0.026 ->
+    0.021 over epochs 6-8), so the short scales decay it to 0 along a half cosine: the last epochs
+    settle (0.019, 0.020, 0.020), and which epoch is kept matters less."""
     if cfg.lr_schedule == "cosine":
         return cfg.lr * 0.5 * (1.0 + math.cos(math.pi * min(step, total_steps) / max(total_steps, 1)))
     return cfg.lr
