@@ -99,6 +99,7 @@ def test_session_plan_smoke_and_default(params, default_params):
     assert sum(s.kind == "shear" for s in full) == 48
     n_normal_pairs = sum(s.kind == "normal" for s in full) * sim["frames_per_trial"]
     assert 8000 <= n_normal_pairs <= 12000
+    assert sim["shear_frames_per_trial"] / 30.0 >= 4.0      # sliding trials long enough for several strokes
     for s in full:   # the recorded pose is the pose table's
         pose = sim["poses"][s.pose_index]
         assert (s.orientation_deg, s.insertion_mm) == (pose["orientation_deg"], pose["insertion_mm"])
@@ -325,6 +326,29 @@ def test_shear_trials_slide_the_tip_under_load(params):
     assert fs[0] == 0.0
 
 
+def test_sliding_tip_is_pinned_by_static_friction_when_it_stands_still(default_params):
+    """Loaded but not moving (before the first stroke, between strokes), the tip's reaction is the
+    static pin of a press; sliding fast, it is kinetic friction against the velocity."""
+    spec = next(s for s in ts.session_plan(default_params) if s.kind == "shear")
+    trial = ts._Trial(spec, default_params, noise=False)
+    tau = np.linspace(0, trial.duration, 2000)
+    reaction = trial.reaction(tau)
+    _, vel = trial.profile.tip_motion(tau)
+    speed = np.linalg.norm(vel, axis=1)
+    normal = reaction[:, 2]
+    still = (speed == 0) & (normal > 1.0)
+    assert still.sum() > 50
+    pinned = trial.grasp.pinned_reaction(normal[still], trial.mu_tip)[:, :2]
+    np.testing.assert_allclose(reaction[still, :2], pinned, atol=1e-12)
+    assert np.hypot(*pinned.T).min() > 0.0                                  # a tilted tool pushes sideways
+    fast = speed > 3 * trial.profile.v0                                    # tanh(3): 99.5 % slipping
+    assert fast.sum() > 20
+    lat = reaction[fast, :2]
+    along = -(lat * vel[fast]).sum(axis=1) / speed[fast]                 # friction opposes the motion
+    np.testing.assert_allclose(along, trial.mu_tip * normal[fast], rtol=0.01)
+    assert (np.hypot(*reaction[:, :2].T) <= trial.mu_tip * normal + 1e-9).all()
+
+
 def test_benchmark_render_speed(params):
     fps = ts.benchmark_render(200, params)
     print(f"\nDIGIT render: {fps:.0f} QVGA frames/s per core")
@@ -380,7 +404,8 @@ def test_simulated_public_session_reads_back(tmp_path, params):
     shear = pl.read_public_trial(tmp_path / "data_shear" / names[1], "shear")
     assert len(normal["frames_left"]) + normal["dropped"] == n and normal["force_n"].max() > 0.5
     assert (normal["force_n"] >= 0).all() and normal["dropped"] > 0      # rest frames around 0 N
-    assert len(shear["frames_right"]) == n and shear["force_n"].max() > 0.5
+    n_shear = params["simulate_tool"]["shear_frames_per_trial"] // params["simulate_tool"]["public"]["frame_stride"]
+    assert len(shear["frames_right"]) == n_shear and shear["force_n"].max() > 0.5
     assert normal["frames_left"][0].shape == (layout.FRAME_H, layout.FRAME_W, 3)
     assert normal["reference_left"].shape == (layout.FRAME_H, layout.FRAME_W, 3)   # frame 0, even if dropped
     # the same seed writes the same dataset

@@ -29,7 +29,8 @@ fingers point down, the tool tip below them):
 - Normal trials: pressing cycles (minimum-jerk rise, hold, fall) with rests at 0 N between
   them; peaks from a Beta distribution skewed to light presses, plus a small force ripple.
 - Shear trials: the tip is loaded to a few newtons and slid in strokes of random direction;
-  the tip friction mu F_N opposes the sliding velocity (regularised Coulomb law).
+  the tip friction mu F_N opposes the sliding velocity (regularised Coulomb law); standing still
+  between strokes and while loading, the tip is pinned by static friction as in a press.
 - Images: see digit_render.py (height field, Taxim softening, saturation at h_max, shear remap,
   three-LED shading, noise, LED flicker, background drift). Each sensor has its own look, gel
   stiffness, frame-rate error and exposure-to-stamp latency (fixed for the session).
@@ -382,7 +383,7 @@ class _Trial:
         rng = _trial_rng(seed, spec, 0)
         self.grasp = _Grasp(spec, sim, self.rig, rng, self.grid)
         cam = sim["camera"]
-        self.n_frames = int(sim["frames_per_trial"])
+        self.n_frames = int(sim["frames_per_trial"] if spec.kind == "normal" else sim["shear_frames_per_trial"])
         self.duration = self.n_frames / cam["fps"]
         self.t0_ns = int(round((SESSION_EPOCH_S + spec.session_index * sim["trial_spacing_s"]) * 1e9))
         if spec.kind == "normal":
@@ -453,7 +454,12 @@ class _Trial:
         _, vel = self.profile.tip_motion(tau)
         speed = np.linalg.norm(vel, axis=1)
         direction = vel / np.maximum(speed, 1e-12)[:, None]
-        lat = -self.mu_tip * normal[:, None] * direction * np.tanh(speed / self.profile.v0)[:, None]
+        # regularised stick-slip: standing still (loading, pauses, unloading) static friction pins
+        # the tip as in a press; sliding, kinetic friction opposes the velocity. Both are bounded
+        # by mu F_N, and so is the blend.
+        slip = np.tanh(speed / self.profile.v0)[:, None]
+        stuck = self.grasp.pinned_reaction(normal, self.mu_tip)[:, :2]
+        lat = (1 - slip) * stuck - slip * self.mu_tip * normal[:, None] * direction
         return np.column_stack([lat, normal])
 
     def sensor_wrench(self, tau: np.ndarray) -> np.ndarray:
