@@ -426,3 +426,14 @@ def test_over_time_figure_shows_the_strongest_trial_of_each_tool(tmp_path):
     assert strongest_trial_per_tool(pred) == ["k/a", "s/b"]
     over_time({"full": pred, "single": pred}, "normal", tmp_path / "fig.png")
     assert (tmp_path / "fig.png").stat().st_size > 10_000
+
+
+def test_beats_baselines_needs_both_lower_mae_and_higher_r2():
+    from tactilepipe.tool.evaluate import beats_baselines
+    base = {"mean_predictor": {"mae": 4.0, "r2": 0.0}, "tactile_rmse_linear": {"mae": 1.0, "r2": 0.8}}
+    evals = {"full": {"mae": 0.5, "r2": 0.95},        # beats both
+             "lower_mae_only": {"mae": 0.9, "r2": 0.7},
+             "higher_r2_only": {"mae": 1.2, "r2": 0.85},
+             "tie": {"mae": 1.0, "r2": 0.9}}          # equal MAE is not lower
+    assert beats_baselines(evals, base) == {"full": True, "lower_mae_only": False,
+                                            "higher_r2_only": False, "tie": False}

@@ -65,3 +65,9 @@ def baselines(labels: np.ndarray, features: np.ndarray, split: dict) -> dict[str
     design = lambda idx: np.column_stack([features[idx], np.ones(len(idx))])
     coef, *_ = np.linalg.lstsq(design(train), labels[train], rcond=None)
     return {"mean_predictor": mean_pred, "tactile_rmse_linear": design(test) @ coef}
+
+
+def beats_baselines(evals: dict[str, dict], base_evals: dict[str, dict]) -> dict[str, bool]:
+    """Per variant: lower MAE and higher R² than every baseline (one metric alone is not "beats")."""
+    return {v: all(e["mae"] < b["mae"] and e["r2"] > b["r2"] for b in base_evals.values())
+            for v, e in evals.items()}

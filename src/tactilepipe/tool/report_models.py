@@ -15,7 +15,7 @@ import pandas as pd
 
 from tactilepipe.atomic import write_json, write_text
 from tactilepipe.tool import figures_models as fm
-from tactilepipe.tool.evaluate import baselines, evaluate, tactile_rmse_features
+from tactilepipe.tool.evaluate import baselines, beats_baselines, evaluate, tactile_rmse_features
 from tactilepipe.tool.loader import ToolFrames
 from tactilepipe.tables import write_table
 
@@ -88,8 +88,8 @@ def build_model_report(scene_dir: Path, scene: str, variants: list[str], sweep_r
                                           "parameters", "epochs", "depth", "image_size")} for v in variants}
     metrics["baselines"] = {k: {m: v[m] for m in ("mae", "rmse", "r2")} for k, v in base_evals.items()}
     metrics["ablation_order_by_mae"] = order
-    metrics["every_variant_beats_baselines"] = all(
-        evals[v]["mae"] < min(b["mae"] for b in base_evals.values()) for v in variants)
+    metrics["beats_baselines"] = beats_baselines({v: evals[v] for v in variants}, base_evals)
+    metrics["every_variant_beats_baselines"] = all(metrics["beats_baselines"].values())
     metrics["split"] = split["name"]
     metrics["test_pairs"] = int(len(test))
     if loto:
