@@ -460,3 +460,18 @@ def test_public_reader_missing_folder_and_bad_shear_line(public_trial, tmp_path)
     (tdir / "force" / "force_data_0001.txt").write_text("1.0,2.0\n")
     with pytest.raises(InputError, match="fx,fy,fz"):
         pl.read_public_trial(tdir, "shear")
+
+
+def test_sliding_strokes_go_back_and_forth_along_the_axis(default_params):
+    slide = default_params["simulate_tool"]["slide"]
+    spread = slide["stroke_spread_deg"]
+    counts = []
+    for spec in [s for s in ts.session_plan(default_params) if s.kind == "shear"][:12]:
+        strokes = ts._Trial(spec, default_params, noise=False).profile.strokes
+        counts.append(len(strokes))
+        deltas = np.array([d for _, _, d in strokes])
+        ang = np.rad2deg(np.arctan2(deltas[:, 1], deltas[:, 0])) - slide["stroke_axis_deg"]
+        off_axis = np.abs((ang + 90) % 180 - 90)                       # angle to the axis, either way
+        assert (off_axis < 4 * spread).all(), spec.name
+        assert ((deltas[1:] * deltas[:-1]).sum(axis=1) < 0).all(), spec.name   # each stroke turns back
+    assert min(counts) >= 1 and np.mean(counts) > 1.75               # mostly out and back in one grasp

@@ -28,7 +28,8 @@ fingers point down, the tool tip below them):
   bounded by the tip friction. The pads stick (no slip; |T| <= mu N is checked per pad).
 - Normal trials: pressing cycles (minimum-jerk rise, hold, fall) with rests at 0 N between
   them; peaks from a Beta distribution skewed to light presses, plus a small force ripple.
-- Shear trials: the tip is loaded to a few newtons and slid in strokes of random direction;
+- Shear trials: the tip is loaded to a few newtons and slid back and forth in strokes along an
+  axis (slide.stroke_axis_deg, with a spread);
   the tip friction mu F_N opposes the sliding velocity (regularised Coulomb law); standing still
   between strokes and while loading, the tip is pinned by static friction as in a press.
 - Images: see digit_render.py (height field, Taxim softening, saturation at h_max, shear remap,
@@ -219,7 +220,7 @@ class _PressProfile:
 
 
 class _SlideProfile:
-    """Shear trial: load the tip, slide it in strokes of random direction, unload."""
+    """Shear trial: load the tip, slide it back and forth along an axis (with a spread), unload."""
 
     def __init__(self, rng: np.random.Generator, slide: dict, duration: float):
         self.load = _uniform(rng, slide["normal_load_n"])
@@ -232,10 +233,13 @@ class _SlideProfile:
         self.ripple = (rng.uniform(0.3, 1.0), rng.uniform(0, 2 * np.pi))
         self.strokes = []
         tau = self.t_on + self.ramp + 0.1
+        axis, spread = np.deg2rad(slide["stroke_axis_deg"]), np.deg2rad(slide["stroke_spread_deg"])
+        way = rng.choice([0.0, np.pi])                  # the first stroke goes either way, then back and forth
         while True:
             dur = _uniform(rng, slide["stroke_s"])
             dist = _uniform(rng, slide["stroke_mm"])
-            ang = rng.uniform(0, 2 * np.pi)
+            ang = axis + way + spread * rng.standard_normal()
+            way = np.pi - way
             pause = _uniform(rng, slide["pause_s"])
             room = self.t_off - 0.05 - tau
             if dur > room:
