@@ -52,9 +52,8 @@ def planned_pairs(p: dict, scene: str, root: Path = Path(".")) -> int | None:
     sessions = p["tool_sessions"]
     if not sessions or not all(s.startswith("sim-") for s in sessions):
         return None                                 # real recordings not yet ingested: unknown
-    from tactilepipe.tool.simulate import session_plan
-    frames = p["simulate_tool"]["frames_per_trial" if kind == "normal" else "shear_frames_per_trial"]
-    per_session = sum(1 for t in session_plan(p) if t.kind == kind) * frames
+    from tactilepipe.tool.simulate import frames_per_trial, session_plan
+    per_session = sum(1 for t in session_plan(p) if t.kind == kind) * frames_per_trial(p, kind)
     return per_session * len(sessions)
 
 

@@ -29,9 +29,9 @@ fingers point down, the tool tip below them):
 - Normal trials: pressing cycles (minimum-jerk rise, hold, fall) with rests at 0 N between
   them; peaks from a Beta distribution skewed to light presses, plus a small force ripple.
 - Shear trials: the tip is loaded to a few newtons and slid back and forth in strokes along an
-  axis (slide.stroke_axis_deg, with a spread);
-  the tip friction mu F_N opposes the sliding velocity (regularised Coulomb law); standing still
-  between strokes and while loading, the tip is pinned by static friction as in a press.
+  axis (slide.stroke_axis_deg, with a spread); the tip friction mu F_N opposes the sliding
+  velocity (regularised Coulomb law); standing still between strokes and while loading, the tip
+  is pinned by static friction as in a press.
 - Images: see digit_render.py (height field, Taxim softening, saturation at h_max, shear remap,
   three-LED shading, noise, LED flicker, background drift). Each sensor has its own look, gel
   stiffness, frame-rate error and exposure-to-stamp latency (fixed for the session).
@@ -113,6 +113,12 @@ def session_plan(params: dict) -> list[TrialSpec]:
                                            float(pose["orientation_deg"]), float(pose["insertion_mm"]),
                                            p, k, len(specs)))
     return specs
+
+
+def frames_per_trial(params: dict, kind: str) -> int:
+    """Camera frames of a pressing ("normal") or sliding ("shear") trial."""
+    sim = _group(params)
+    return int(sim["frames_per_trial"] if kind == "normal" else sim["shear_frames_per_trial"])
 
 
 def _trial_rng(seed: int, spec: TrialSpec, sub: int) -> np.random.Generator:
@@ -387,7 +393,7 @@ class _Trial:
         rng = _trial_rng(seed, spec, 0)
         self.grasp = _Grasp(spec, sim, self.rig, rng, self.grid)
         cam = sim["camera"]
-        self.n_frames = int(sim["frames_per_trial"] if spec.kind == "normal" else sim["shear_frames_per_trial"])
+        self.n_frames = frames_per_trial(params, spec.kind)
         self.duration = self.n_frames / cam["fps"]
         self.t0_ns = int(round((SESSION_EPOCH_S + spec.session_index * sim["trial_spacing_s"]) * 1e9))
         if spec.kind == "normal":
