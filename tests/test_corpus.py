@@ -40,7 +40,7 @@ from tactilepipe.volume.simulate import read_session_labels
 
 START_NS = 1_700_000_000_000_000_000
 CAL = np.diag([8.0, 8.0, 20.0, 100.0, 100.0, 100.0])
-SYNC = {"max_gap_s": 0.2, "reference": "first", "contact_n": 0.5, "normal_sign": 1}
+SYNC = {"max_gap_s": 0.2, "pair_rate_hz": 0, "reference": "first", "contact_n": 0.5, "normal_sign": 1}
 SIZE = 32                                           # ingest image size
 N_FRAMES, N_FORCE = 24, 40
 

@@ -8,7 +8,7 @@ import pytest
 
 from tactilepipe.errors import InputError
 from tactilepipe.tool.serial_log import read_serial_log
-from tactilepipe.tool.splits import make_split
+from tactilepipe.tool.splits import make_split, thin_training
 from tactilepipe.tool.sync import calibrate, estimate_offset, interpolate_at, pair_frames
 
 
@@ -181,3 +181,31 @@ def test_splits_are_seeded(samples):
     a, b = make_split(samples, "trial", "fz", seed=1), make_split(samples, "trial", "fz", seed=1)
     c = make_split(samples, "trial", "fz", seed=2)
     assert a["test"] == b["test"] and a["test"] != c["test"]
+
+
+def test_thin_training_keeps_whole_trials_per_tool_and_leaves_validation_and_test_alone(samples):
+    split = make_split(samples, "trial", "fz", seed=3)           # 4 training trials per tool
+    half = thin_training(split, samples, seed=5, trial_fraction=0.5)
+    rows = samples.iloc[half["train"]]
+    assert rows.groupby("tool")["trial"].nunique().to_dict() == dict.fromkeys(samples["tool"].unique(), 2)
+    kept = set(rows["trial"])
+    assert kept == set(half["trials"]["train"])
+    # every frame of a kept trial stays; nothing outside the original training set comes in
+    assert len(rows) == samples["trial"].isin(kept).sum()
+    assert set(half["train"]) <= set(split["train"])
+    assert half["validation"] == split["validation"] and half["test"] == split["test"]
+    assert half["label_stats"] == split["label_stats"]
+    # nested: a larger fraction keeps the smaller fraction's trials
+    three_q = thin_training(split, samples, seed=5, trial_fraction=0.75)
+    assert kept < set(three_q["trials"]["train"])
+
+
+def test_thin_training_by_frame_stride_keeps_every_trial(samples):
+    split = make_split(samples, "trial", "fz", seed=3)
+    thin = thin_training(split, samples, seed=5, frame_stride=3)
+    assert thin["trials"]["train"] == split["trials"]["train"]
+    for trial, group in samples.iloc[thin["train"]].groupby("trial"):
+        full = samples.index[samples["trial"] == trial]
+        assert list(group.index) == list(full[::3])
+    with pytest.raises(InputError, match="frame_stride"):
+        thin_training(split, samples, seed=5, frame_stride=0)

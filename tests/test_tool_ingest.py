@@ -19,7 +19,7 @@ from tactilepipe.tool.native_import import read_native_trial
 
 CAL = np.diag([8.0, 8.0, 20.0, 100.0, 100.0, 100.0])   # N/V: 5/1023 V per count -> ~0.1 N per Fz count
 START_NS = 1_700_000_000_000_000_000
-SYNC = {"max_gap_s": 0.2, "reference": "first", "contact_n": 0.5, "normal_sign": 1}  # this rig reads +Fz
+SYNC = {"max_gap_s": 0.2, "pair_rate_hz": 0, "reference": "first", "contact_n": 0.5, "normal_sign": 1}  # this rig reads +Fz
 
 
 def force_curve(t):
@@ -98,6 +98,21 @@ def test_dataset_pairs_frames_with_synced_forces(session, tmp_path):
     assert np.array_equal(x[:, 1], np.broadcast_to(data.references[0, 0], (3, 32, 32)))
     qc = json.loads((tmp_path / "data" / "qc.json").read_text())
     assert [t["pairs"] for t in qc["trials"]] == [len(data.samples[data.samples.trial_index == k]) for k in (0, 1)]
+
+
+def test_pairs_are_thinned_to_the_pair_rate_without_counting_drops(session, tmp_path):
+    ingest_trial(read_native_trial(session / "t00"), tmp_path / "t00.parquet", image_size=32)
+    for rate, out in ((0, "every"), (15, "at15")):
+        build_tool_dataset([tmp_path / "t00.parquet"], "normal", tmp_path / out, {**SYNC, "pair_rate_hz": rate})
+    every, at15 = ToolFrames(tmp_path / "every", "fz"), ToolFrames(tmp_path / "at15", "fz")
+    assert len(at15) == (len(every) + 1) // 2                 # 30-FPS frames: every second pair
+    assert np.allclose(np.diff(at15.samples["t_s"]), 2 / 30, atol=0.005)
+    assert np.array_equal(at15.frames[:], every.frames[::2]) and np.array_equal(at15.labels, every.labels[::2])
+    assert np.array_equal(at15.references[:], every.references[:])   # still frame 0 of the trial
+    qc = [json.loads((tmp_path / d / "qc.json").read_text())["trials"][0] for d in ("every", "at15")]
+    # the frames left out are not drops (force-gap drops are counted among the pairs kept)
+    assert qc[0]["drops"]["unpaired frame"] == qc[1]["drops"]["unpaired frame"] == 0
+    assert (qc[0]["pair_every"], qc[1]["pair_every"]) == (1, 2)
 
 
 def test_force_gaps_drop_frames_and_are_counted(session, tmp_path):

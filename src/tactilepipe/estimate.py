@@ -52,8 +52,11 @@ def planned_pairs(p: dict, scene: str, root: Path = Path(".")) -> int | None:
     sessions = p["tool_sessions"]
     if not sessions or not all(s.startswith("sim-") for s in sessions):
         return None                                 # real recordings not yet ingested: unknown
+    from tactilepipe.tool.dataset import pair_step
     from tactilepipe.tool.simulate import frames_per_trial, session_plan
-    per_session = sum(1 for t in session_plan(p) if t.kind == kind) * frames_per_trial(p, kind)
+    step = pair_step(1e9 / p["simulate_tool"]["camera"]["fps"], p["tool_sync"]["pair_rate_hz"])
+    pairs_per_trial = -(-frames_per_trial(p, kind) // step)          # every step-th pair, from the first
+    per_session = sum(1 for t in session_plan(p) if t.kind == kind) * pairs_per_trial
     return per_session * len(sessions)
 
 

@@ -1,6 +1,7 @@
 """Shards of one trial kind -> the training set of a tool scene (sync, references, QC).
 
-For every trial: pair the two fingers' frames taken within half a frame period, give each pair
+For every trial: pair the two fingers' frames taken within half a frame period, keep every k-th
+pair to come down to ``pair_rate_hz`` (the paper pairs at 15 FPS), give each pair
 the force interpolated at its time (dropped and counted where the force has a gap longer than
 ``max_gap_s``), choose the zero-force reference frame of each finger, and decode the images once
 into memory-mappable arrays:
@@ -48,6 +49,13 @@ def reference_index(t_s: np.ndarray, force_mag: np.ndarray, rule: str, contact_n
     return np.arange(max(1, end))
 
 
+def pair_step(frame_period_ns: float, pair_rate_hz: float) -> int:
+    """Keep every k-th frame pair so that pairs come at about ``pair_rate_hz`` (0: every pair)."""
+    if pair_rate_hz <= 0:
+        return 1
+    return max(1, int(round(1e9 / pair_rate_hz / frame_period_ns)))
+
+
 def load_trial(shard: Path, info: dict, sync: dict) -> dict:
     table = pq.read_table(shard).to_pandas()
     frames = table[table["row"] == "frame"]
@@ -61,13 +69,15 @@ def load_trial(shard: Path, info: dict, sync: dict) -> dict:
     il, ir = pair_frames(left, right, int(period / 2))
     drops = Counter(info.get("drops", {}))
     drops["unpaired frame"] += (len(left) - len(il)) + (len(right) - len(ir))
+    step = pair_step(period, sync["pair_rate_hz"])        # thinned by design: not a drop
+    il, ir = il[::step], ir[::step]
     t_ns = (left[il] + right[ir]) // 2
     f_t = force["t_ns"].to_numpy()
     order = np.argsort(f_t)
     values, ok = interpolate_at(t_ns.astype(np.float64), f_t[order].astype(np.float64),
                                 force[["fx", "fy", "fz"]].to_numpy()[order], sync["max_gap_s"] * 1e9)
     drops["force gap"] += int((~ok).sum())
-    return {"info": info, "t_ns": t_ns[ok], "force": values[ok], "drops": drops,
+    return {"info": info, "t_ns": t_ns[ok], "force": values[ok], "drops": drops, "pair_every": step,
             "png": [by_sensor[SENSORS[0]]["png"].to_numpy()[il[ok]], by_sensor[SENSORS[1]]["png"].to_numpy()[ir[ok]]]}
 
 
@@ -105,7 +115,7 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
                 "t_ns": trial["t_ns"], "t_s": t_s, "fx": fx, "fy": fy, "fz": fz,
                 "normal": normal, "shear": shear}))
             qc.append({"trial": info["trial"], "tool": info["tool"], "frames": info["frames"], "pairs": m,
-                       "drops": dict(trial["drops"]), "clock": info["clock"],
+                       "pair_every": trial["pair_every"], "drops": dict(trial["drops"]), "clock": info["clock"],
                        "force_min_n": float(label_mag.min()), "force_max_n": float(label_mag.max()),
                        "reference_frames": int(len(ref_idx)), "source": info["source"]})
             k += m

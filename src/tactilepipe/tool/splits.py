@@ -104,3 +104,22 @@ def _two_way(groups: pd.Series, train_fraction: float, rng) -> tuple[np.ndarray,
         assign[order[-1]] = 1
     part = groups.map(assign).to_numpy()
     return np.flatnonzero(part == 0), np.flatnonzero(part == 1)
+
+
+def thin_training(split: dict, samples: pd.DataFrame, seed: int, trial_fraction: float = 1.0,
+                  frame_stride: int = 1) -> dict:
+    """The split with a smaller training set (validation, test and label scaling unchanged), for
+    learning curves: ceil(trial_fraction x n) of each tool's training trials (nested as the fraction
+    grows, for one seed), and of those every ``frame_stride``-th frame of each trial."""
+    if not 0 < trial_fraction <= 1 or frame_stride < 1:
+        raise InputError("splits", f"trial_fraction must be in (0, 1] and frame_stride >= 1, got "
+                                   f"{trial_fraction} and {frame_stride}")
+    train = np.asarray(split["train"])
+    rows = samples.iloc[train]
+    keep = []
+    for _, group in rows.groupby("tool"):
+        trials = np.random.default_rng([seed, 7]).permutation(sorted(group["trial"].unique()))
+        keep += list(trials[: int(np.ceil(trial_fraction * len(trials)))])
+    mask = rows["trial"].isin(keep).to_numpy() & (rows.groupby("trial").cumcount().to_numpy() % frame_stride == 0)
+    return {**split, "train": train[mask].tolist(),
+            "trials": {**split["trials"], "train": sorted(rows["trial"][mask].unique().tolist())}}
