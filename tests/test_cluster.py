@@ -108,8 +108,10 @@ def test_estimate_report_counts_jobs_and_models_training():
     assert row["ingest_tool"][1] == "3" and row["ingest_tool"][-2] == "3.0"     # 3 jobs x 1 core x 1 h
     assert row["tool_train"][1] == "2" and row["tool_train"][-1] == "96.0"       # 2 x 1 GPU x 48 h booked
     pairs = planned_pairs(p, "tool_normal", Path("/nonexistent"))
-    assert pairs == 4 * 3 * 6 * 550           # tools x poses x normal trials x pairs (1,100 frames at 15 FPS)
-    assert planned_pairs(p, "tool_shear", Path("/nonexistent")) == 4 * 3 * 4 * 550     # sliding trials
+    assert pairs == 4 * 3 * 3 * 1100                         # tools x poses x normal trials x frames
+    assert planned_pairs(p, "tool_shear", Path("/nonexistent")) == 4 * 3 * 2 * 1100   # sliding trials
+    at15 = {**p, "tool_sync": {**p["tool_sync"], "pair_rate_hz": 15}}      # 30-FPS frames paired at 15 FPS
+    assert planned_pairs(at15, "tool_normal", Path("/nonexistent")) == 4 * 3 * 3 * 550
     t = training_flops(p, pairs, "full", 101, 224)
     expected_h = t["flop"] / (p["resources"]["cost_model"]["gpu_tflops"] * 1e12) / 3600
     assert t["epochs"] == 300 and t["train_pairs"] == int(pairs * 0.7)
