@@ -81,7 +81,7 @@ def main() -> None:
                 out.mkdir()
                 t0 = time.perf_counter()
                 r = train_and_predict(args.scene, scene_dir / "data", split_path, out, variant, tp["depth"],
-                                      tp["image_size"], tp_arm, params["seed"], progress=False)
+                                      tp["image_size"], tp_arm, seed, progress=False)
                 rows.append({"arm": arm, "model": variant, "train_trials": n_trials, "train_pairs": len(idx),
                              "mae": r["mae"], "r2": r["r2"], "epochs": r["epochs"], "best_epoch": r["best_epoch"],
                              "train_s": time.perf_counter() - t0})

@@ -1,7 +1,7 @@
 """Shards of one trial kind -> the training set of a tool scene (sync, references, QC).
 
-For every trial: pair the two fingers' frames taken within half a frame period, keep every k-th
-pair to come down to ``pair_rate_hz`` (the paper pairs at 15 FPS), give each pair
+For every trial: pair the two fingers' frames taken within half a frame period, optionally keep
+every k-th pair to come down to ``pair_rate_hz`` (0: every pair; the paper pairs at 15 FPS), give each pair
 the force interpolated at its time (dropped and counted where the force has a gap longer than
 ``max_gap_s``), choose the zero-force reference frame of each finger, and decode the images once
 into memory-mappable arrays:
