@@ -184,7 +184,13 @@ def test_second_snakemake_in_the_same_folder_is_refused(reference, tmp_path):
         # the first run holds its lock and is running an ingest job
         wait_for(lambda: list((wd / ".snakemake/locks").glob("*.lock"))
                  and (wd / "results/logs/ingest_tool").is_dir(), first, wd)
-        second = smk(wd, *CONFIG, "--", DATA, check=False)
+        # paused while the second one starts: on a loaded machine the first could otherwise finish
+        # (and release its lock) before the second has built its DAG, and the second would succeed
+        os.killpg(first.pid, signal.SIGSTOP)
+        try:
+            second = smk(wd, *CONFIG, "--", DATA, check=False)
+        finally:
+            os.killpg(first.pid, signal.SIGCONT)
         assert second.returncode != 0
         out = second.stdout + second.stderr
         assert LOCKED in out and "no other Snakemake process is trying to create the same files" in out, out
