@@ -21,7 +21,6 @@ About 10 minutes on 2 cores at default scale with the default arguments.
 
 from __future__ import annotations
 
-import argparse
 import json
 import tempfile
 import time
@@ -30,36 +29,25 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from tactilepipe.config import load_params
-from tactilepipe.tool.evaluate import baselines, summarise, tactile_rmse_features
-from tactilepipe.tool.loader import ToolFrames
-from tactilepipe.tool.run_model import LABELS, train_and_predict
+from study_common import load_scene, study_arguments
+from tactilepipe.tool.evaluate import baselines, summarise
+from tactilepipe.tool.run_model import train_and_predict
 from tactilepipe.tool.splits import thin_training
-
-REPO = Path(__file__).resolve().parents[1]
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scene", default="tool_normal", choices=sorted(LABELS))
-    ap.add_argument("--scene-dir", type=Path, help="a built scene (default: results/<scene>)")
-    ap.add_argument("--variants", nargs="+", default=["no_ref"])
+    ap = study_arguments(__doc__.splitlines()[0])
     ap.add_argument("--fractions", nargs="*", type=float, default=[0.5, 1.0])
     ap.add_argument("--strides", nargs="*", type=int, default=[2])
     ap.add_argument("--same-epochs", action="store_true",
                     help="train every arm for the workflow's max_epochs (fewer steps on a smaller set)")
     args = ap.parse_args()
 
-    params = load_params(REPO / "params.yaml", {"scale": "default"})
-    tp = params["tool_train"]
-    scene_dir = args.scene_dir or REPO / "results" / args.scene
+    scene = load_scene(args)
+    tp, seed, scene_dir, data, feats = scene.tool_train, scene.seed, scene.dir, scene.data, scene.rmse_features
     split = json.loads((scene_dir / "splits" / f"{tp['split']}.json").read_text())
-    label, _ = LABELS[args.scene]
-    data = ToolFrames(scene_dir / "data", label)
-    feats = tactile_rmse_features(data.frames, data.references, data.trial_index)
     test = np.asarray(split["test"])
 
-    seed = params["seed"]
     arms = [(f"trials={f:g}", thin_training(split, data.samples, seed, trial_fraction=f)) for f in args.fractions]
     arms += [(f"stride={k}", thin_training(split, data.samples, seed, frame_stride=k)) for k in args.strides]
 

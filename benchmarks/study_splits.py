@@ -16,7 +16,6 @@ About 2.5 minutes per variant and split on 2 cores at default scale (no_ref, Fz)
 
 from __future__ import annotations
 
-import argparse
 import json
 import tempfile
 import time
@@ -25,30 +24,21 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from tactilepipe.config import load_params
-from tactilepipe.tool.evaluate import baselines, summarise, tactile_rmse_features
-from tactilepipe.tool.loader import ToolFrames
-from tactilepipe.tool.run_model import LABELS, train_and_predict
+from study_common import load_scene, study_arguments
+from tactilepipe.tool.evaluate import baselines, summarise
+from tactilepipe.tool.run_model import train_and_predict
 from tactilepipe.tool.splits import make_split
-
-REPO = Path(__file__).resolve().parents[1]
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scene", default="tool_normal", choices=sorted(LABELS))
-    ap.add_argument("--scene-dir", type=Path, help="a built scene (default: results/<scene>)")
-    ap.add_argument("--variants", nargs="+", default=["no_ref"])
+    ap = study_arguments(__doc__.splitlines()[0])
     ap.add_argument("--splits", type=int, default=5, help="how many split seeds (seed, seed+1, ...)")
     ap.add_argument("--first-split-seed", type=int, help="default: params.yaml seed (the workflow's split)")
     args = ap.parse_args()
 
-    params = load_params(REPO / "params.yaml", {"scale": "default"})
-    tp, seed = params["tool_train"], params["seed"]
-    scene_dir = args.scene_dir or REPO / "results" / args.scene
-    label, _ = LABELS[args.scene]
-    data = ToolFrames(scene_dir / "data", label)
-    feats = tactile_rmse_features(data.frames, data.references, data.trial_index)
+    scene = load_scene(args)
+    tp, seed, scene_dir, label, data, feats = (scene.tool_train, scene.seed, scene.dir, scene.label,
+                                               scene.data, scene.rmse_features)
     first = seed if args.first_split_seed is None else args.first_split_seed
 
     rows = []
