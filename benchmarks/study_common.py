@@ -1,18 +1,21 @@
-"""What the tool-scene studies (study_grasps.py, study_splits.py) share: their common arguments and
-loading a built scene with its tactile-RMSE features (computed once, refitted per arm)."""
+"""What the tool-scene studies (study_grasps.py, study_splits.py) share: their common arguments,
+loading a built scene with its tactile-RMSE features (computed once), and per arm the refitted
+baseline and a training run."""
 
 from __future__ import annotations
 
 import argparse
+import json
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from tactilepipe.config import load_params
-from tactilepipe.tool.evaluate import tactile_rmse_features
+from tactilepipe.tool.evaluate import baselines, summarise, tactile_rmse_features
 from tactilepipe.tool.loader import ToolFrames
-from tactilepipe.tool.run_model import LABELS
+from tactilepipe.tool.run_model import LABELS, train_and_predict
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -42,3 +45,22 @@ def load_scene(args: argparse.Namespace) -> Scene:
     data = ToolFrames(scene_dir / "data", label)
     return Scene(params["tool_train"], params["seed"], scene_dir, label, data,
                  tactile_rmse_features(data.frames, data.references, data.trial_index))
+
+
+def baseline_on(scene: Scene, split: dict) -> dict:
+    """The tactile-RMSE linear baseline refitted on ``split``'s training rows, scored on its test rows."""
+    test = np.asarray(split["test"])
+    return summarise(scene.data.labels[test],
+                     baselines(scene.data.labels, scene.rmse_features, split)["tactile_rmse_linear"])
+
+
+def train_on(scene_name: str, scene: Scene, split: dict, out: Path, variant: str, tool_train: dict) -> tuple[dict, float]:
+    """Train one variant on ``split`` (written next to ``out``), as the workflow's training stage does;
+    its eval.json fields and the wall time in seconds."""
+    split_path = out.with_suffix(".split.json")
+    split_path.write_text(json.dumps(split))
+    out.mkdir()
+    t0 = time.perf_counter()
+    r = train_and_predict(scene_name, scene.dir / "data", split_path, out, variant, tool_train["depth"],
+                          tool_train["image_size"], tool_train, scene.seed, progress=False)
+    return r, time.perf_counter() - t0

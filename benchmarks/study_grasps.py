@@ -23,15 +23,12 @@ from __future__ import annotations
 
 import json
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from study_common import load_scene, study_arguments
-from tactilepipe.tool.evaluate import baselines, summarise
-from tactilepipe.tool.run_model import train_and_predict
+from study_common import baseline_on, load_scene, study_arguments, train_on
 from tactilepipe.tool.splits import thin_training
 
 
@@ -44,8 +41,8 @@ def main() -> None:
     args = ap.parse_args()
 
     scene = load_scene(args)
-    tp, seed, scene_dir, data, feats = scene.tool_train, scene.seed, scene.dir, scene.data, scene.rmse_features
-    split = json.loads((scene_dir / "splits" / f"{tp['split']}.json").read_text())
+    tp, seed, data = scene.tool_train, scene.seed, scene.data
+    split = json.loads((scene.dir / "splits" / f"{tp['split']}.json").read_text())
     test = np.asarray(split["test"])
 
     arms = [(f"trials={f:g}", thin_training(split, data.samples, seed, trial_fraction=f)) for f in args.fractions]
@@ -56,23 +53,16 @@ def main() -> None:
         for arm, sub in arms:
             idx = np.asarray(sub["train"])
             n_trials = len(sub["trials"]["train"])
-            base = baselines(data.labels, feats, sub)["tactile_rmse_linear"]
-            b = summarise(data.labels[test], base)
+            b = baseline_on(scene, sub)
             rows.append({"arm": arm, "model": "tactile_rmse_linear", "train_trials": n_trials,
                          "train_pairs": len(idx), "mae": b["mae"], "r2": b["r2"]})
             stretch = 1.0 if args.same_epochs else len(split["train"]) / len(idx)   # same optimiser steps
             tp_arm = {**tp, "max_epochs": round(tp["max_epochs"] * stretch), "patience": round(tp["patience"] * stretch)}
-            split_path = Path(tmp) / f"{arm}.json"
-            split_path.write_text(json.dumps(sub))
             for variant in args.variants:
-                out = Path(tmp) / f"{arm}-{variant}"
-                out.mkdir()
-                t0 = time.perf_counter()
-                r = train_and_predict(args.scene, scene_dir / "data", split_path, out, variant, tp["depth"],
-                                      tp["image_size"], tp_arm, seed, progress=False)
+                r, seconds = train_on(args.scene, scene, sub, Path(tmp) / f"{arm}-{variant}", variant, tp_arm)
                 rows.append({"arm": arm, "model": variant, "train_trials": n_trials, "train_pairs": len(idx),
                              "mae": r["mae"], "r2": r["r2"], "epochs": r["epochs"], "best_epoch": r["best_epoch"],
-                             "train_s": time.perf_counter() - t0})
+                             "train_s": seconds})
                 print(f"{arm:<12}{variant:<22}{n_trials:>6} trials {len(idx):>6} pairs   "
                       f"MAE {r['mae']:.3f} N  R2 {r['r2']:.3f}  ({rows[-1]['train_s']:.0f} s)", flush=True)
 

@@ -16,17 +16,12 @@ About 2.5 minutes per variant and split on 2 cores at default scale (no_ref, Fz)
 
 from __future__ import annotations
 
-import json
 import tempfile
-import time
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
-from study_common import load_scene, study_arguments
-from tactilepipe.tool.evaluate import baselines, summarise
-from tactilepipe.tool.run_model import train_and_predict
+from study_common import baseline_on, load_scene, study_arguments, train_on
 from tactilepipe.tool.splits import make_split
 
 
@@ -37,34 +32,26 @@ def main() -> None:
     args = ap.parse_args()
 
     scene = load_scene(args)
-    tp, seed, scene_dir, label, data, feats = (scene.tool_train, scene.seed, scene.dir, scene.label,
-                                               scene.data, scene.rmse_features)
+    tp, seed, label, data = scene.tool_train, scene.seed, scene.label, scene.data
     first = seed if args.first_split_seed is None else args.first_split_seed
 
     rows = []
     with tempfile.TemporaryDirectory(prefix="tactilepipe-study-splits-") as tmp:
         for split_seed in range(first, first + args.splits):
             split = make_split(data.samples, "trial", label, split_seed)
-            test = np.asarray(split["test"])
             n_test = len(split["trials"]["test"])
-            base = summarise(data.labels[test], baselines(data.labels, feats, split)["tactile_rmse_linear"])
+            base = baseline_on(scene, split)
             rows.append({"split_seed": split_seed, "model": "tactile_rmse_linear", "test_trials": n_test,
                          "mae": base["mae"], "r2": base["r2"]})
             print(f"split {split_seed}  {'tactile_rmse_linear':<20}{n_test:>4} test trials   "
                   f"MAE {base['mae']:.3f} N  R2 {base['r2']:.3f}", flush=True)
-            split_path = Path(tmp) / f"split-{split_seed}.json"
-            split_path.write_text(json.dumps(split))
             for variant in args.variants:
-                out = Path(tmp) / f"{split_seed}-{variant}"
-                out.mkdir()
-                t0 = time.perf_counter()
-                r = train_and_predict(args.scene, scene_dir / "data", split_path, out, variant, tp["depth"],
-                                      tp["image_size"], tp, seed, progress=False)
+                r, seconds = train_on(args.scene, scene, split, Path(tmp) / f"{split_seed}-{variant}", variant, tp)
                 rows.append({"split_seed": split_seed, "model": variant, "test_trials": n_test,
                              "mae": r["mae"], "r2": r["r2"], "d_mae": r["mae"] - base["mae"],
                              "d_r2": r["r2"] - base["r2"],
                              "beats": bool(r["mae"] < base["mae"] and r["r2"] > base["r2"]),
-                             "epochs": r["epochs"], "best_epoch": r["best_epoch"], "train_s": time.perf_counter() - t0})
+                             "epochs": r["epochs"], "best_epoch": r["best_epoch"], "train_s": seconds})
                 print(f"split {split_seed}  {variant:<20}{n_test:>4} test trials   MAE {r['mae']:.3f} N  "
                       f"R2 {r['r2']:.3f}  vs baseline {rows[-1]['d_mae']:+.3f} N / {rows[-1]['d_r2']:+.3f}  "
                       f"({rows[-1]['train_s']:.0f} s)", flush=True)
