@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SNAKEMAKE := $(BIN)/snakemake --cores 2 --workflow-profile workflow/profiles/default
 
-.PHONY: run test test-slurm smoke bench clean-results
+.PHONY: run test test-slurm smoke bench clean-results pull dvc.yaml
 
 $(STAMP): requirements.txt pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -31,6 +31,13 @@ bench: $(STAMP)  ## benchmarks, each printing ours next to the reference loop an
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_volume.py
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_tool.py
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_dvc.py
+
+pull: $(STAMP)  ## fetch shared results (dvc pull) and, once DVC finds them current by content, mark them so for Snakemake
+	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/dvc pull
+	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python workflow/scripts/mark_pulled.py
+
+dvc.yaml: $(STAMP)  ## regenerate dvc.yaml from the Snakemake graph (run after editing rules, stages or imports)
+	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python workflow/scripts/dvc_yaml.py
 
 clean-results:  ## remove generated results (raw recordings stay)
 	rm -rf results/volume results/drift results/logs

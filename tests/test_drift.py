@@ -32,6 +32,7 @@ def smoke_session(tmp_path_factory, smoke_params):
         simulate.write_drift_bag(bag, name, smoke_params)
         ingest_bag(bag, shard)
         shards.append(shard)
+    simulate.write_session_meta(root / "raw", smoke_params)
     return root, shards
 
 
@@ -159,7 +160,7 @@ def test_cross_run_r2_scores_one_run_with_the_other_runs_fit():
 def test_misnamed_file_raises_input_error_naming_it(tmp_path, name):
     good = tmp_path / "unloaded_t00.parquet"
     with pytest.raises(InputError) as err:
-        analyse.drift_series([good, tmp_path / name])   # names are checked before any file is read
+        analyse.drift_series([good, tmp_path / name], load_g=500)   # names are checked before any file is read
     assert name in str(err.value)
 
 
@@ -169,15 +170,15 @@ def test_unloaded_recording_with_a_weight_on_it_is_an_input_error(tmp_path):
     path = tmp_path / "unloaded_t05.parquet"
     pd.DataFrame({"stamp_ns": (t * 1e9).astype(np.int64), "sensor": 0, "gfz": fz}).to_parquet(path)
     with pytest.raises(InputError, match="unloaded_t05.parquet.*something was on the sensor"):
-        analyse.drift_series([path])
+        analyse.drift_series([path], load_g=500)
 
 
 # --- end to end -------------------------------------------------------------------------------
 
 def test_end_to_end_smoke_session(tmp_path, smoke_session, smoke_params):
-    _, shards = smoke_session
+    root, shards = smoke_session
     out = tmp_path / "drift"
-    metrics = analyse.run(shards, out, smoke_params)
+    metrics = analyse.run(shards, root / "raw" / "session.json", out, smoke_params)
 
     for rel in ["metrics.json", "drift_series.csv", "fits.csv", "fits.md", "figures/drift_curves.png"]:
         assert (out / rel).stat().st_size > 0, rel
@@ -205,3 +206,31 @@ def test_end_to_end_smoke_session(tmp_path, smoke_session, smoke_params):
     assert (metrics["cross_run_r2"]["unloaded->loaded"][best_loaded]
             < metrics["fits"]["loaded"][best_loaded]["r2"] - 0.2)
     assert all(math.isfinite(v) for pair in metrics["cross_run_r2"].values() for v in pair.values())
+
+
+# --- the session's own metadata ------------------------------------------------------------------
+
+def test_reference_weight_comes_from_the_session_not_the_simulator(tmp_path, smoke_session, smoke_params):
+    """A real session's weight is what its session.json says; simulator settings play no part."""
+    root, shards = smoke_session
+    assert json.loads((root / "raw" / "session.json").read_text()) == {
+        "reference_load_g": smoke_params["simulate_drift"]["load_g"]}
+    heavier = tmp_path / "session.json"
+    heavier.write_text(json.dumps({"reference_load_g": smoke_params["simulate_drift"]["load_g"] + 100}))
+    base = analyse.run(shards, root / "raw" / "session.json", tmp_path / "a", smoke_params)
+    other = analyse.run(shards, heavier, tmp_path / "b", smoke_params)
+    # 100 g more stated weight: the loaded reading's deviation drops by 0.981 N
+    assert other["reference_n"]["loaded"] == pytest.approx(base["reference_n"]["loaded"] + 0.981, abs=1e-6)
+
+
+@pytest.mark.parametrize("text, problem", [
+    (None, "missing"), ("{", "not valid JSON"), ('{"reference_load_g": -1}', ">= 0"),
+    ('{"reference_load_g": "500"}', ">= 0"), ('{"load": 500}', "reference_load_g"),
+])
+def test_bad_session_meta_is_an_input_error_naming_the_file(tmp_path, text, problem):
+    from tactilepipe.drift import read_session_meta
+    path = tmp_path / "session.json"
+    if text is not None:
+        path.write_text(text)
+    with pytest.raises(InputError, match=f"session.json.*{problem}"):
+        read_session_meta(path)

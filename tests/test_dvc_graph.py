@@ -171,3 +171,25 @@ def test_an_undeclared_output_is_caught(smoke_copy: Path):
     problems = check_agreement(smoke_copy, _mutate(smoke_copy, "tool_models", "deps", "results/tool_shear/splits"))
     assert any(p.startswith("stage tool_models: rule tool_train reads results/tool_shear/splits/") for p in problems), \
         problems
+
+
+def test_committed_dvc_yaml_is_what_the_generator_makes():
+    """dvc.yaml is generated from the Snakemake graph; a stale committed copy fails here."""
+    proc = run([str(BIN / "python"), "workflow/scripts/dvc_yaml.py", "--check"], REPO, check=False)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+
+
+def test_generator_lists_each_stage_code_closure_and_declared_params():
+    stages = yaml.safe_load((REPO / "dvc.yaml").read_text())["stages"]
+    from tactilepipe import codedeps
+    drift_code = {d for d in stages["simulate_drift"]["deps"] if d.endswith(".py")}
+    # the drift simulator imports the volume simulator and its viscoelastic pillars
+    assert {"src/tactilepipe/volume/simulate.py", "src/tactilepipe/volume/viscoelastic.py"} <= drift_code
+    assert drift_code == set(codedeps.stage_files("cmd_simulate_drift"))
+    assert "src/tactilepipe/tool/model.py" in stages["tool_models"]["deps"]
+    assert "src/tactilepipe/tool/model.py" not in stages["volume"]["deps"]
+    assert "simulate_drift" not in stages["drift"]["params"]          # the analysis reads no simulator setting
+    assert {"workflow/rules/drift.smk", "workflow/rules/ingest.smk", "workflow/rules/common.smk"} <= set(stages["drift"]["deps"])
+    assert "tool_train.lr" in stages["tool_models"]["params"] and "tool_train" not in stages["tool_models"]["params"]
+    for stage in stages.values():
+        assert stage["params"][-1] == "scales.${scale}" and "scale" in stage["params"]

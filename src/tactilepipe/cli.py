@@ -15,8 +15,12 @@ from pathlib import Path
 from tactilepipe.errors import TactilepipeError
 
 
-def _params(args) -> dict:
-    from tactilepipe.config import load_params
+def _params(args, *keys: str) -> dict:
+    """The stage's parameters: params.yaml (+ --override), resolved for the scale, cut down to
+    ``keys`` (dotted, e.g. "tool_train.lr"). These keys are the stage's only way in: reading any
+    other key raises, and the workflow reads the same keys (codedeps.stage_param_keys) to decide
+    what a parameter change re-runs, so the two cannot drift apart."""
+    from tactilepipe.config import declared, load_params
     from tactilepipe.errors import ConfigError
     try:
         overrides = json.loads(args.override) if args.override else {}
@@ -26,7 +30,19 @@ def _params(args) -> dict:
         raise ConfigError(f"--override must be a JSON object, got {type(overrides).__name__}")
     if args.scale:
         overrides["scale"] = args.scale
-    return load_params(args.params, overrides)
+    return declared(load_params(args.params, overrides), keys, f"tactilepipe {args.command}")
+
+
+def _write_provenance(args, out_dir: Path) -> None:
+    """provenance.json beside a scene's metrics: the stages that made it (their code and the
+    parameter values each declares), its input sessions, packages, machine and commit."""
+    from tactilepipe.config import load_params
+    from tactilepipe.provenance import write_provenance
+    overrides = json.loads(args.override) if args.override else {}
+    if args.scale:
+        overrides["scale"] = args.scale
+    write_provenance(out_dir / "provenance.json", args.provenance_stages, load_params(args.params, overrides),
+                     args.sessions)
 
 
 def _progress(iterable, desc: str, total: int | None = None):
@@ -54,30 +70,41 @@ def _run_parallel(jobs: list, workers: int, desc: str) -> None:
 
 # --- stages -----------------------------------------------------------------------------------
 
-def cmd_simulate(args) -> None:
-    p = _params(args)
+def cmd_simulate_volume(args) -> None:
+    from tactilepipe.volume import simulate as sim
+    p = _params(args, "seed", "simulate_volume")
+    plan = sim.session_plan(p["simulate_volume"])
+    chosen = [l for l in plan if not args.lifts or l.name in args.lifts]
+    unknown = set(args.lifts or []) - {l.name for l in plan}
+    if unknown:
+        raise TactilepipeError(f"unknown lift names for this scale: {sorted(unknown)}")
     out = Path(args.out_dir)
-    if args.what == "volume":
-        from tactilepipe.volume import simulate as sim
-        plan = sim.session_plan(p["simulate_volume"])
-        chosen = [l for l in plan if not args.lifts or l.name in args.lifts]
-        unknown = set(args.lifts or []) - {l.name for l in plan}
-        if unknown:
-            raise TactilepipeError(f"unknown lift names for this scale: {sorted(unknown)}")
-        jobs = [(sim.write_lift_bag, out / f"{l.name}.bag", l, p["simulate_volume"], p["seed"]) for l in chosen]
-        _run_parallel(jobs, args.jobs, "simulate volume")
-        if args.labels:
-            sim.write_session_labels(out, plan)
-    elif args.what == "tool":
-        from tactilepipe.tool import simulate as tsim
-        plan = tsim.session_plan(p)
-        chosen = [t for t in plan if not args.lifts or t.name in args.lifts]
-        tsim.write_session_calibration(out, p)
-        _run_parallel([(tsim.write_trial, out, t, p) for t in chosen], args.jobs, "simulate tool")
-    else:
-        from tactilepipe.drift import simulate as dsim
-        names = args.lifts or dsim.session_plan(p)
-        _run_parallel([(dsim.write_drift_bag, out / f"{n}.bag", n, p) for n in names], args.jobs, "simulate drift")
+    jobs = [(sim.write_lift_bag, out / f"{l.name}.bag", l, p["simulate_volume"], p["seed"]) for l in chosen]
+    _run_parallel(jobs, args.jobs, "simulate volume")
+    if args.labels:
+        sim.write_session_labels(out, plan)
+
+
+def cmd_simulate_tool(args) -> None:
+    from tactilepipe.tool import simulate as tsim
+    p = _params(args, "seed", "simulate_tool")
+    out = Path(args.out_dir)
+    chosen = [t for t in tsim.session_plan(p) if not args.lifts or t.name in args.lifts]
+    tsim.write_session_calibration(out, p)
+    _run_parallel([(tsim.write_trial, out, t, p) for t in chosen], args.jobs, "simulate tool")
+
+
+def cmd_simulate_drift(args) -> None:
+    from tactilepipe.drift import simulate as dsim
+    p = _params(args, "seed", "simulate_drift", "simulate_volume")
+    out = Path(args.out_dir)
+    names = args.lifts or dsim.session_plan(p)
+    _run_parallel([(dsim.write_drift_bag, out / f"{n}.bag", n, p) for n in names], args.jobs, "simulate drift")
+    dsim.write_session_meta(out, p)
+
+
+def cmd_simulate(args) -> None:
+    {"volume": cmd_simulate_volume, "tool": cmd_simulate_tool, "drift": cmd_simulate_drift}[args.what](args)
 
 
 def cmd_ingest(args) -> None:
@@ -93,7 +120,7 @@ def cmd_ingest(args) -> None:
 def cmd_ingest_tool(args) -> None:
     from tactilepipe.tool.importers import open_trial
     from tactilepipe.tool.ingest import ingest_trial
-    p = _params(args)
+    p = _params(args, "tool_ingest")
     ti = p["tool_ingest"]
     raw = open_trial(args.trial, args.format, ti["ros_topics"])
     info = ingest_trial(raw, args.out, ti["image_size"], ti["max_offset_s"])
@@ -102,7 +129,7 @@ def cmd_ingest_tool(args) -> None:
 
 def cmd_tool_dataset(args) -> None:
     from tactilepipe.tool.dataset import build_tool_dataset
-    p = _params(args)
+    p = _params(args, "tool_sync")
     build_tool_dataset([Path(s) for s in args.shards], args.kind, Path(args.out_dir), p["tool_sync"])
 
 
@@ -110,7 +137,7 @@ def cmd_tool_split(args) -> None:
     import pandas as pd
     from tactilepipe.atomic import write_json
     from tactilepipe.tool.splits import make_split
-    p = _params(args)
+    p = _params(args, "seed", "tool_split.fractions", "tool_split.holdout_tool", "tool_split.holdout_pose")
     sp = p["tool_split"]
     samples = pd.read_parquet(Path(args.data_dir) / "samples.parquet")
     split = make_split(samples, args.split, args.label, p["seed"], tuple(sp["fractions"]),
@@ -120,24 +147,25 @@ def cmd_tool_split(args) -> None:
 
 def cmd_tool_train(args) -> None:
     from tactilepipe.tool.run_model import train_and_predict
-    p = _params(args)
-    tp = p["tool_train"]
+    p = _params(args, "seed", "tool_train.lr", "tool_train.lr_schedule", "tool_train.batch_size",
+                "tool_train.max_epochs", "tool_train.patience", "tool_train.max_train_batches_per_epoch",
+                "tool_train.bn_recalibration_batches", "tool_train.device", "tool_train.amp", "tool_train.num_threads")
     result = train_and_predict(args.scene, Path(args.data_dir), Path(args.split), Path(args.out_dir), args.variant,
-                               args.depth or tp["depth"], args.image_size or p["tool_ingest"]["image_size"],
-                               tp, p["seed"], progress=not args.quiet)
+                               args.depth, args.image_size, p["tool_train"], p["seed"], progress=not args.quiet)
     print(json.dumps({k: result[k] for k in ("variant", "depth", "image_size", "mae", "rmse", "r2", "train_s",
                                              "latency_ms")}))
 
 
 def cmd_tool_report(args) -> None:
     from tactilepipe.tool.report_models import build_model_report
-    p = _params(args)
+    p = _params(args, "tool_train.variants")
     build_model_report(Path(args.in_dir), args.scene, p["tool_train"]["variants"], args.sweep or [])
+    _write_provenance(args, Path(args.in_dir))
 
 
 def cmd_predict(args) -> None:
     from tactilepipe.tool.predict import stream_predictions
-    p = _params(args)
+    p = _params(args, "tool_ingest.ros_topics", "tool_ingest.image_size")
     stream_predictions(Path(args.checkpoint), Path(args.trial), args.format, p, limit=args.limit)
 
 
@@ -156,7 +184,7 @@ def _session_lifts(p: dict, raw_root: Path, shard_root: Path):
 def cmd_dataset(args) -> None:
     from tactilepipe.atomic import write_parquet, write_text
     from tactilepipe.volume.dataset import build_dataset
-    p = _params(args)
+    p = _params(args, "volume_sessions", "segment")
     lifts = _session_lifts(p, Path(args.raw_root), Path(args.shard_root))
     data, qc = build_dataset(lifts, p["segment"])
     write_parquet(args.out, data)
@@ -167,7 +195,7 @@ def cmd_split(args) -> None:
     import pandas as pd
     from tactilepipe.atomic import write_json
     from tactilepipe.volume.folds import make_folds
-    p = _params(args)
+    p = _params(args, "seed", "folds")
     lifts = pd.read_parquet(args.dataset, columns=["lift", "volume_ml", "set"]).drop_duplicates("lift")
     f = p["folds"]
     folds = make_folds(lifts, f["n_folds"], f["train_lifts_per_volume"], f["test_lifts_per_volume"],
@@ -180,7 +208,8 @@ def cmd_train(args) -> None:
     from tactilepipe.atomic import write_parquet, write_text
     from tactilepipe.volume.mlp import MLPConfig
     from tactilepipe.volume.train import fit_modality
-    p = _params(args)
+    p = _params(args, "seed", "volume_sensor", "mlp.modalities", "mlp.hidden_units", "mlp.alpha", "mlp.batch_size", "mlp.learning_rate",
+                "mlp.tol", "mlp.n_iter_no_change", "mlp.max_iter", "mlp.restarts")
     if args.modality not in p["mlp"]["modalities"]:
         raise TactilepipeError(f"unknown modality '{args.modality}' (params.yaml mlp.modalities: "
                                f"{sorted(p['mlp']['modalities'])})")
@@ -198,7 +227,7 @@ def cmd_gridsearch(args) -> None:
     from tactilepipe.atomic import write_text
     from tactilepipe.volume.mlp import MLPConfig
     from tactilepipe.volume.train import grid_search
-    p = _params(args)
+    p = _params(args, "seed", "volume_sensor", "mlp")
     grid = p["mlp"]["grid"]
     data = pd.read_parquet(args.dataset)
     folds = json.loads(Path(args.folds).read_text())
@@ -211,7 +240,7 @@ def cmd_baseline(args) -> None:
     import pandas as pd
     from tactilepipe.atomic import write_json, write_parquet, write_text
     from tactilepipe.volume.baseline import sweep
-    p = _params(args)
+    p = _params(args, "volume_sensor", "baseline")
     data = pd.read_parquet(args.dataset)
     folds = json.loads(Path(args.folds).read_text())
     res = sweep(data, folds, p["volume_sensor"], p["baseline"])
@@ -222,18 +251,29 @@ def cmd_baseline(args) -> None:
     write_json(out / "mu.json", {"mu_star": res["mu_star"], "optima": res["optima"].to_dict("records")})
 
 
+def cmd_report_volume(args) -> None:
+    from tactilepipe.volume.report import build_report
+    p = _params(args, "scale", "volume_sessions", "mlp.modalities", "mlp.grid.modality", "mlp.grid.inner_folds")
+    build_report(Path(args.in_dir), p, Path(args.raw_root), Path(args.shard_root))
+    _write_provenance(args, Path(args.in_dir))
+
+
+def cmd_report_drift(args) -> None:
+    from tactilepipe.drift.analyse import run
+    p = _params(args, "drift")
+    run([Path(s) for s in args.shards], Path(args.session_meta), Path(args.in_dir), p)
+    _write_provenance(args, Path(args.in_dir))
+
+
+def cmd_report_tool_data(args) -> None:
+    from tactilepipe.tool.report_data import build_data_report
+    p = _params(args, "tool_split.level_n")
+    label = "normal" if args.what == "tool_normal" else "shear"
+    build_data_report(Path(args.in_dir) / "data", Path(args.in_dir), label, p["tool_split"]["level_n"])
+
+
 def cmd_report(args) -> None:
-    p = _params(args)
-    if args.what == "volume":
-        from tactilepipe.volume.report import build_report
-        build_report(Path(args.in_dir), p, Path(args.raw_root), Path(args.shard_root))
-    elif args.what == "drift":
-        from tactilepipe.drift.analyse import run
-        run([Path(s) for s in args.shards], Path(args.in_dir), p)
-    else:
-        from tactilepipe.tool.report_data import build_data_report
-        label = "normal" if args.what == "tool_normal" else "shear"
-        build_data_report(Path(args.in_dir) / "data", Path(args.in_dir), label, p["tool_split"]["level_n"])
+    {"volume": cmd_report_volume, "drift": cmd_report_drift}.get(args.what, cmd_report_tool_data)(args)
 
 
 # --- argument parsing -------------------------------------------------------------------------
@@ -244,6 +284,10 @@ def build_parser() -> argparse.ArgumentParser:
     common.add_argument("--params", default="params.yaml", help="parameter file (default: params.yaml)")
     common.add_argument("--scale", help="smoke | default | paper (overrides params.yaml)")
     common.add_argument("--override", help="JSON object merged over params.yaml before validation")
+    provenance = argparse.ArgumentParser(add_help=False)
+    provenance.add_argument("--provenance-stages", nargs="*", default=[], metavar="STAGE",
+                            help="CLI stages (cmd_*) whose code and parameters made this scene")
+    provenance.add_argument("--sessions", nargs="*", default=[], help="the scene's input recording sessions")
     sub = parser.add_subparsers(dest="command", required=True, metavar="STAGE")
 
     s = sub.add_parser("simulate", parents=[common], help="write simulated raw recordings (ROS1 bags)")
@@ -283,12 +327,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--data-dir", required=True)
     s.add_argument("--split", required=True, help="split file (results/<scene>/splits/<name>.json)")
     s.add_argument("--out-dir", required=True)
-    s.add_argument("--depth", type=int, choices=[18, 34, 50, 101], help="ResNet depth (default: params)")
-    s.add_argument("--image-size", type=int, help="train on frames downscaled to this size (default: data size)")
+    s.add_argument("--depth", type=int, choices=[18, 34, 50, 101], required=True, help="ResNet depth")
+    s.add_argument("--image-size", type=int, required=True, help="train on frames downscaled to this size")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=cmd_tool_train)
 
-    s = sub.add_parser("tool-report", parents=[common], help="metrics.json, tables and figures of the tool models")
+    s = sub.add_parser("tool-report", parents=[common, provenance], help="metrics.json, tables and figures of the tool models")
     s.add_argument("--scene", choices=["tool_normal", "tool_shear"], required=True)
     s.add_argument("--in-dir", required=True)
     s.add_argument("--sweep", nargs="*", help="extra runs (backbone/size) for the error-against-run-time plot")
@@ -332,12 +376,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out-dir", required=True)
     s.set_defaults(func=cmd_baseline)
 
-    s = sub.add_parser("report", parents=[common], help="metrics.json, tables and figures of a scene")
+    s = sub.add_parser("report", parents=[common, provenance], help="metrics.json, tables and figures of a scene")
     s.add_argument("what", choices=["volume", "drift", "tool_normal", "tool_shear"])
     s.add_argument("--in-dir", required=True, help="the scene's results folder")
     s.add_argument("--raw-root", default="raw/volume")
     s.add_argument("--shard-root", default="results/volume/shards")
     s.add_argument("--shards", nargs="*", default=[], help="drift: the recordings' shards")
+    s.add_argument("--session-meta", help="drift: the session's session.json (reference weight)")
     s.set_defaults(func=cmd_report)
     return parser
 

@@ -107,3 +107,41 @@ def load_params(path: str | Path = DEFAULT_PARAMS, overrides: dict | None = None
     if overrides:
         raw = deep_merge(raw or {}, overrides)
     return resolve(raw, str(path), overrides)
+
+
+class DeclaredParams(dict):
+    """A stage's parameters: only the keys it declared. Reading another key is an error naming
+    the stage and the key, so a stage cannot depend on a parameter the workflow does not track."""
+
+    where: str = "stage"
+
+    def __missing__(self, key):
+        raise ConfigError(f"{self.where}: reads parameter '{key}', which the stage does not declare "
+                          f"(add it to the stage's _params keys in tactilepipe.cli)")
+
+
+def declared(resolved: dict, keys, where: str) -> DeclaredParams:
+    """``resolved`` cut down to the dotted ``keys`` ("tool_train.lr" keeps tool_train: {lr: ...})."""
+    def wrap(value, path):
+        if isinstance(value, dict) and not isinstance(value, DeclaredParams):
+            out = DeclaredParams({k: wrap(v, f"{path}.{k}") for k, v in value.items()})
+            out.where = where
+            return out
+        return copy.deepcopy(value)
+
+    out = DeclaredParams()
+    out.where = where
+    for key in keys:
+        node, parts = resolved, key.split(".")
+        for i, part in enumerate(parts):
+            if not isinstance(node, dict) or part not in node:
+                raise ConfigError(f"{where}: declares parameter '{key}', which params.yaml does not have")
+            node = node[part]
+        target = out
+        for part in parts[:-1]:
+            if part not in target:
+                target[part] = DeclaredParams()
+                target[part].where = where
+            target = dict.__getitem__(target, part)
+        target[parts[-1]] = wrap(node, key)
+    return out

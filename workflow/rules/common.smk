@@ -6,7 +6,8 @@ from pathlib import Path
 
 import yaml
 
-from tactilepipe.config import resolve
+from tactilepipe import codedeps
+from tactilepipe.config import declared, resolve
 from tactilepipe.errors import TactilepipeError
 from tactilepipe.volume.simulate import read_session_labels, session_plan
 from tactilepipe.drift.simulate import session_plan as drift_plan
@@ -25,6 +26,33 @@ except TactilepipeError as exc:
     raise WorkflowError(str(exc)) from None
 CLI = f"{shlex.quote(sys.executable)} -m tactilepipe"
 PARAMS_ARGS = f"--override {shlex.quote(json.dumps(OVERRIDES, sort_keys=True))}" if OVERRIDES else ""
+
+
+def _repo_relative(path):
+    """Workflow-relative path of a source file (absolute when the package lives elsewhere)."""
+    try:
+        return str(Path(path).resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(Path(path).resolve())
+
+
+def stage_code(stage):
+    """Source files the CLI stage function ``stage`` runs (its import closure in tactilepipe): a
+    rule lists them as inputs, so editing one re-runs exactly the rules that run it."""
+    return [_repo_relative(codedeps.module_path(m)) for m in sorted(codedeps.stage_modules(stage))]
+
+
+def stage_params(stage):
+    """The parameters the CLI stage declares (its only way in) and their values: a change re-runs
+    the rule, and the dvc.yaml generator lists the keys as the DVC stage's params."""
+    keys = codedeps.stage_param_keys(stage)
+    return {"stage": stage, "values": json.loads(json.dumps(declared(P, keys, stage)))}
+
+
+def graph_params(*keys):
+    """Parameters that decide which jobs a rule has or what their command lines say (sessions,
+    which runs, a run's depth and size), read here in the workflow rather than by the stage."""
+    return {"keys": list(keys), "values": json.loads(json.dumps(declared(P, keys, "workflow")))}
 
 
 def rule_resources(rule):
@@ -82,12 +110,20 @@ def drift_bag_stems(session):
     return stems
 
 
+def volume_raw_inputs():
+    """Every raw file of the volume sessions (provenance.json hashes them)."""
+    return [f"raw/volume/{s}/{stem}.bag" for s in P["volume_sessions"] for stem in volume_bag_stems(s)] + \
+        [f"raw/volume/{s}/lifts.csv" for s in P["volume_sessions"]]
+
+
 def drift_shards():
     return [f"{DRIFT}/shards/{DRIFT_SESSION}/{name}.parquet" for name in drift_bag_stems(DRIFT_SESSION)]
 
 
 VOLUME_TARGETS = [
     f"{VOLUME}/metrics.json",
+    f"{VOLUME}/provenance.json",
+    f"{VOLUME}/runtime.json",
     f"{VOLUME}/tables/table1_r2.md",
     f"{VOLUME}/tables/table2_volumes.md",
     f"{VOLUME}/tables/unseen_volumes.md",
@@ -99,7 +135,24 @@ VOLUME_TARGETS = [
     f"{VOLUME}/figures/error_vs_runtime.png",
     f"{VOLUME}/figures/pillar_map.png",
 ]
-DRIFT_TARGETS = [f"{DRIFT}/metrics.json", f"{DRIFT}/fits.md", f"{DRIFT}/figures/drift_curves.png"]
+DRIFT_TARGETS = [f"{DRIFT}/metrics.json", f"{DRIFT}/provenance.json", f"{DRIFT}/fits.md",
+                 f"{DRIFT}/figures/drift_curves.png"]
+
+
+def provenance_args(scene):
+    """`--provenance-stages ... --sessions ...` of a scene's report: the CLI stages that make its
+    numbers (the simulator's too when a session is simulated) and its raw sessions, in which
+    provenance.json records their code, parameters and content."""
+    stages_of = {"volume": ["cmd_ingest", "cmd_dataset", "cmd_split", "cmd_train", "cmd_gridsearch", "cmd_baseline",
+                         "cmd_report_volume"],
+              "drift": ["cmd_ingest", "cmd_report_drift"],
+              "tool": ["cmd_ingest_tool", "cmd_tool_dataset", "cmd_tool_split", "cmd_tool_train", "cmd_tool_report"]}
+    kind = scene if scene in ("volume", "drift") else "tool"
+    sessions = [DRIFT_SESSION] if kind == "drift" else P[f"{kind}_sessions"]
+    simulator = {"volume": "cmd_simulate_volume", "drift": "cmd_simulate_drift", "tool": "cmd_simulate_tool"}[kind]
+    stages = ([simulator] if any(is_simulated(s) for s in sessions) else []) + stages_of[kind]
+    dirs = [f"raw/{kind}/{s}" for s in sessions]
+    return "--provenance-stages " + " ".join(stages) + " --sessions " + " ".join(shlex.quote(d) for d in dirs)
 
 
 def tool_trials(session):
@@ -174,7 +227,7 @@ def tool_data_targets(scene):
 
 def tool_model_targets(scene):
     """Metrics, tables and figures of every trained model run of a tool scene."""
-    return [f"results/{scene}/metrics.json"] + \
+    return [f"results/{scene}/metrics.json", f"results/{scene}/provenance.json", f"results/{scene}/runtime.json"] + \
         [f"results/{scene}/tables/{t}.md" for t in TOOL_MODEL_TABLES] + \
         [f"results/{scene}/figures/{fig}.png" for fig in TOOL_MODEL_FIGURES]
 
@@ -198,11 +251,15 @@ report: "../report/workflow.rst"
 
 
 def reported(files, scene):
-    """Outputs marked for the report, under the scene's category (`{scene}` for the tool rules)."""
+    """Outputs marked for the report, under the scene's category (`{scene}` for the tool rules).
+    Provenance and run times are outputs too, but not report items."""
     group = scene if scene in ("volume", "drift") else "tool"
     out = []
     for f in files:
         p = Path(f)
+        if p.name in ("provenance.json", "runtime.json"):
+            out.append(f)
+            continue
         kind = {".png": "figures", ".json": "metrics"}.get(p.suffix, "tables")
         stem = f"{p.stem}_table" if (group, p.stem, p.suffix) == ("tool", "per_tool", ".md") else p.stem
         out.append(report(f, caption=f"../report/{group}/{stem}.rst", category=scene, subcategory=kind))

@@ -3,16 +3,21 @@
 
 rule drift_report:
     input:
-        drift_shards(),
+        shards=drift_shards(),
+        meta=f"raw/drift/{DRIFT_SESSION}/session.json",
+        code=stage_code("cmd_report_drift"),
     output:
         reported(DRIFT_TARGETS, "drift"),
         series=f"{DRIFT}/drift_series.csv",
         fits=f"{DRIFT}/fits.csv",
     params:
-        drift=P["drift"],
+        declared=stage_params("cmd_report_drift"),
+        graph=graph_params("scale", "drift_session"),
+        provenance=provenance_args("drift"),
     resources:
         **rule_resources("drift_report"),
     log:
         f"{LOGS}/drift/report.log",
     shell:
-        "{CLI} report drift {PARAMS_ARGS} --in-dir {DRIFT} --shards {input} 2> {log}"
+        "{CLI} report drift {PARAMS_ARGS} --in-dir {DRIFT:q} --session-meta {input.meta:q} "
+        "--shards {input.shards:q} {params.provenance} 2> {log:q}"

@@ -3,7 +3,8 @@
 
 rule ingest_papillarray:
     input:
-        "raw/{scene}/{session}/{stem}.bag",
+        bag="raw/{scene}/{session}/{stem}.bag",
+        code=stage_code("cmd_ingest"),
     output:
         "results/{scene}/shards/{session}/{stem}.parquet",
     wildcard_constraints:
@@ -13,4 +14,4 @@ rule ingest_papillarray:
     log:
         f"{LOGS}/ingest/{{scene}}/{{session}}/{{stem}}.log",
     shell:
-        "{CLI} ingest {input} {output} > {log} 2>&1"
+        "{CLI} ingest {input.bag:q} {output:q} > {log:q} 2>&1"

@@ -7,43 +7,48 @@ TOOL_SPLITS = ["frame", "trial", "loto", "lopo"]
 
 
 rule simulate_tool:
+    input:
+        code=stage_code("cmd_simulate_tool"),
     output:
         cal="raw/tool/{session}/nano17.cal",
         meta=[f"raw/tool/{{session}}/{name}/meta.json" for name in tool_trial_names("sim-")],
     wildcard_constraints:
         session="sim-[A-Za-z0-9_-]+",
     params:
-        physics=P["simulate_tool"],
-        seed=P["seed"],
+        declared=stage_params("cmd_simulate_tool"),
+        out_dir=lambda w: f"raw/tool/{w.session}",
     threads: 2
     resources:
         **rule_resources("simulate_tool"),
     log:
         f"{LOGS}/simulate_tool/{{session}}.log",
     shell:
-        "{CLI} simulate tool {PARAMS_ARGS} --out-dir raw/tool/{wildcards.session} --jobs {threads} 2> {log}"
+        "{CLI} simulate tool {PARAMS_ARGS} --out-dir {params.out_dir:q} --jobs {threads} 2> {log:q}"
 
 
 rule ingest_tool:
     input:
-        tool_trial_input,
+        trial=tool_trial_input,
+        code=stage_code("cmd_ingest_tool"),
     output:
         "results/tool/shards/{session}/{trial}.parquet",
     params:
         fmt=lambda w: tool_trial_format(w.session, w.trial),
         path=lambda w: tool_trial_path(w.session, w.trial),
-        ingest=P["tool_ingest"],
+        declared=stage_params("cmd_ingest_tool"),
+        graph=graph_params("scale", "tool_sessions"),
     resources:
         **rule_resources("ingest_tool"),
     log:
         f"{LOGS}/ingest_tool/{{session}}/{{trial}}.log",
     shell:
-        "{CLI} ingest-tool {PARAMS_ARGS} {params.path} --format {params.fmt} --out {output} > {log} 2>&1"
+        "{CLI} ingest-tool {PARAMS_ARGS} {params.path:q} --format {params.fmt} --out {output:q} > {log:q} 2>&1"
 
 
 rule tool_dataset:
     input:
-        lambda w: tool_shards(TOOL_TARGETS[w.scene][0]),
+        shards=lambda w: tool_shards(TOOL_TARGETS[w.scene][0]),
+        code=stage_code("cmd_tool_dataset"),
     output:
         frames="results/{scene}/data/frames.npy",
         references="results/{scene}/data/references.npy",
@@ -53,19 +58,21 @@ rule tool_dataset:
         scene="tool_normal|tool_shear",
     params:
         kind=lambda w: TOOL_TARGETS[w.scene][0],
-        sync=P["tool_sync"],
+        declared=stage_params("cmd_tool_dataset"),
+        graph=graph_params("scale", "tool_sessions"),
     resources:
         **rule_resources("tool_dataset"),
     log:
         f"{LOGS}/{{scene}}/dataset.log",
     shell:
-        "{CLI} tool-dataset {PARAMS_ARGS} --kind {params.kind} --shards {input} "
-        "--out-dir results/{wildcards.scene}/data 2> {log}"
+        "{CLI} tool-dataset {PARAMS_ARGS} --kind {params.kind} --shards {input.shards:q} "
+        "--out-dir results/{wildcards.scene}/data 2> {log:q}"
 
 
 rule tool_split:
     input:
-        "results/{scene}/data/samples.parquet",
+        samples="results/{scene}/data/samples.parquet",
+        code=stage_code("cmd_tool_split"),
     output:
         "results/{scene}/splits/{split}.json",
     wildcard_constraints:
@@ -73,34 +80,35 @@ rule tool_split:
         split="|".join(TOOL_SPLITS),
     params:
         label=lambda w: TOOL_TARGETS[w.scene][1],
-        split=P["tool_split"],
-        seed=P["seed"],
+        declared=stage_params("cmd_tool_split"),
     resources:
         **rule_resources("tool_split"),
     log:
         f"{LOGS}/{{scene}}/split_{{split}}.log",
     shell:
         "{CLI} tool-split {PARAMS_ARGS} --data-dir results/{wildcards.scene}/data --split {wildcards.split} "
-        "--label {params.label} --out {output} 2> {log}"
+        "--label {params.label} --out {output:q} 2> {log:q}"
 
 
 rule tool_data_report:
     input:
         data=rules.tool_dataset.output,
         raw=lambda w: tool_raw_inputs(TOOL_TARGETS[w.scene][0]),
+        code=stage_code("cmd_report_tool_data"),
     output:
         qc=reported(["results/{scene}/qc.md"], "{scene}")[0],
         figures=reported(expand("results/{{scene}}/figures/{fig}.png", fig=TOOL_DATA_FIGURES), "{scene}"),
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     params:
-        level=P["tool_split"]["level_n"],
+        declared=stage_params("cmd_report_tool_data"),
+        graph=graph_params("scale", "tool_sessions"),
     resources:
         **rule_resources("tool_data_report"),
     log:
         f"{LOGS}/{{scene}}/data_report.log",
     shell:
-        "{CLI} report {wildcards.scene} {PARAMS_ARGS} --in-dir results/{wildcards.scene} 2> {log}"
+        "{CLI} report {wildcards.scene} {PARAMS_ARGS} --in-dir results/{wildcards.scene} 2> {log:q}"
 
 
 rule tool_data:
@@ -141,6 +149,7 @@ rule tool_train:
     input:
         data=rules.tool_dataset.output,
         split=lambda w: f"results/{w.scene}/splits/{run_spec(w.run)[1]}.json",
+        code=stage_code("cmd_tool_train"),
     output:
         evaluation="results/{scene}/models/{run}/eval.json",
         predictions="results/{scene}/models/{run}/predictions.parquet",
@@ -151,8 +160,9 @@ rule tool_train:
         run="[a-z_0-9]+",
     params:
         spec=lambda w: run_spec(w.run),
-        train={k: v for k, v in P["tool_train"].items() if k not in ("variants", "sweep", "loto")},
-        seed=P["seed"],
+        declared=stage_params("cmd_tool_train"),
+        graph=graph_params("tool_train.split", "tool_train.depth", "tool_train.image_size", "tool_train.sweep",
+                           "tool_train.loto", "tool_train.variants"),
     threads: 2
     resources:
         **rule_resources("tool_train"),
@@ -161,7 +171,7 @@ rule tool_train:
     shell:
         "{CLI} tool-train {PARAMS_ARGS} --scene {wildcards.scene} --variant {params.spec[0]} "
         "--data-dir results/{wildcards.scene}/data --split {input.split} --depth {params.spec[2]} "
-        "--image-size {params.spec[3]} --out-dir results/{wildcards.scene}/models/{wildcards.run} --quiet 2> {log}"
+        "--image-size {params.spec[3]} --out-dir results/{wildcards.scene}/models/{wildcards.run} --quiet 2> {log:q}"
 
 
 rule tool_model_report:
@@ -169,18 +179,25 @@ rule tool_model_report:
         runs=lambda w: expand("results/{scene}/models/{run}/{f}", scene=w.scene, run=tool_runs(),
                               f=["eval.json", "predictions.parquet"]),
         data=rules.tool_dataset.output,
+        raw=lambda w: tool_raw_inputs(TOOL_TARGETS[w.scene][0]),
+        code=stage_code("cmd_tool_report"),
     output:
         metrics=reported(["results/{scene}/metrics.json"], "{scene}")[0],
+        provenance="results/{scene}/provenance.json",
+        runtime="results/{scene}/runtime.json",
         tables=reported(expand("results/{{scene}}/tables/{t}.md", t=TOOL_MODEL_TABLES), "{scene}"),
         figures=reported(expand("results/{{scene}}/figures/{fig}.png", fig=TOOL_MODEL_FIGURES), "{scene}"),
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     params:
         sweep=[sweep_run_name(s) for s in P["tool_train"]["sweep"]],
+        declared=stage_params("cmd_tool_report"),
+        graph=graph_params("scale", "tool_sessions", "tool_train.sweep", "tool_train.loto"),
+        provenance=lambda w: provenance_args(w.scene),
     resources:
         **rule_resources("tool_model_report"),
     log:
         "results/logs/{scene}/model_report.log",
     shell:
         "{CLI} tool-report {PARAMS_ARGS} --scene {wildcards.scene} --in-dir results/{wildcards.scene} "
-        "--sweep {params.sweep} 2> {log}"
+        "--sweep {params.sweep} {params.provenance} 2> {log:q}"

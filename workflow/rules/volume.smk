@@ -5,92 +5,93 @@ rule volume_dataset:
     input:
         shards=volume_shards(),
         labels=[f"raw/volume/{s}/lifts.csv" for s in P["volume_sessions"]],
+        code=stage_code("cmd_dataset"),
     output:
         data=f"{VOLUME}/dataset.parquet",
         qc=f"{VOLUME}/qc.csv",
     params:
-        segment=P["segment"],
-        sessions=P["volume_sessions"],
+        declared=stage_params("cmd_dataset"),
+        graph=graph_params("scale", "volume_sessions"),
     resources:
         **rule_resources("volume_dataset"),
     log:
         f"{LOGS}/volume/dataset.log",
     shell:
-        "{CLI} dataset {PARAMS_ARGS} --out {output.data} --qc {output.qc} 2> {log}"
+        "{CLI} dataset {PARAMS_ARGS} --out {output.data:q} --qc {output.qc:q} 2> {log:q}"
 
 
 rule volume_split:
     input:
-        f"{VOLUME}/dataset.parquet",
+        data=f"{VOLUME}/dataset.parquet",
+        code=stage_code("cmd_split"),
     output:
         f"{VOLUME}/folds.json",
     params:
-        folds=P["folds"],
-        seed=P["seed"],
+        declared=stage_params("cmd_split"),
     resources:
         **rule_resources("volume_split"),
     log:
         f"{LOGS}/volume/split.log",
     shell:
-        "{CLI} split {PARAMS_ARGS} --dataset {input} --out {output} 2> {log}"
+        "{CLI} split {PARAMS_ARGS} --dataset {input.data:q} --out {output:q} 2> {log:q}"
 
 
 rule volume_train:
     input:
         data=f"{VOLUME}/dataset.parquet",
         folds=f"{VOLUME}/folds.json",
+        code=stage_code("cmd_train"),
     output:
         predictions=f"{VOLUME}/mlp/{{modality}}/predictions.parquet",
         folds=f"{VOLUME}/mlp/{{modality}}/folds.csv",
     params:
-        mlp=lambda w: {k: v for k, v in P["mlp"].items() if k not in ("grid", "modalities")},
-        axes=lambda w: P["mlp"]["modalities"][w.modality],
-        sensor=P["volume_sensor"],
+        declared=stage_params("cmd_train"),
+        out_dir=lambda w: f"{VOLUME}/mlp/{w.modality}",
     resources:
         **rule_resources("volume_train"),
     log:
         f"{LOGS}/volume/train_{{modality}}.log",
     shell:
-        "{CLI} train {PARAMS_ARGS} --modality {wildcards.modality} --dataset {input.data} "
-        "--folds {input.folds} --out-dir {VOLUME}/mlp/{wildcards.modality} 2> {log}"
+        "{CLI} train {PARAMS_ARGS} --modality {wildcards.modality:q} --dataset {input.data:q} "
+        "--folds {input.folds:q} --out-dir {params.out_dir:q} 2> {log:q}"
 
 
 rule volume_gridsearch:
     input:
         data=f"{VOLUME}/dataset.parquet",
         folds=f"{VOLUME}/folds.json",
+        code=stage_code("cmd_gridsearch"),
     output:
         f"{VOLUME}/mlp/grid.csv",
     params:
-        mlp=P["mlp"],
-        sensor=P["volume_sensor"],
+        declared=stage_params("cmd_gridsearch"),
     resources:
         **rule_resources("volume_gridsearch"),
     log:
         f"{LOGS}/volume/gridsearch.log",
     shell:
-        "{CLI} gridsearch {PARAMS_ARGS} --dataset {input.data} --folds {input.folds} --out {output} 2> {log}"
+        "{CLI} gridsearch {PARAMS_ARGS} --dataset {input.data:q} --folds {input.folds:q} --out {output:q} 2> {log:q}"
 
 
 rule volume_baseline:
     input:
         data=f"{VOLUME}/dataset.parquet",
         folds=f"{VOLUME}/folds.json",
+        code=stage_code("cmd_baseline"),
     output:
         predictions=f"{VOLUME}/baseline/predictions.parquet",
         folds=f"{VOLUME}/baseline/folds.csv",
         curve=f"{VOLUME}/baseline/mu_curve.csv",
         mu=f"{VOLUME}/baseline/mu.json",
     params:
-        baseline=P["baseline"],
-        sensor=P["volume_sensor"],
+        declared=stage_params("cmd_baseline"),
     resources:
         **rule_resources("volume_baseline"),
     log:
         f"{LOGS}/volume/baseline.log",
     shell:
-        "{CLI} baseline {PARAMS_ARGS} --dataset {input.data} --folds {input.folds} "
-        "--out-dir {VOLUME}/baseline 2> {log}"
+        "{CLI} baseline {PARAMS_ARGS} --dataset {input.data:q} --folds {input.folds:q} "
+        "--out-dir {VOLUME:q}/baseline 2> {log:q}"
 
 
 rule volume_report:
@@ -101,11 +102,17 @@ rule volume_report:
         baseline=rules.volume_baseline.output,
         qc=f"{VOLUME}/qc.csv",
         shards=volume_shards(),
+        raw=volume_raw_inputs(),
+        code=stage_code("cmd_report_volume"),
     output:
         reported(VOLUME_TARGETS, "volume"),
+    params:
+        declared=stage_params("cmd_report_volume"),
+        graph=graph_params("scale", "volume_sessions"),
+        provenance=provenance_args("volume"),
     resources:
         **rule_resources("volume_report"),
     log:
         f"{LOGS}/volume/report.log",
     shell:
-        "{CLI} report volume {PARAMS_ARGS} --in-dir {VOLUME} 2> {log}"
+        "{CLI} report volume {PARAMS_ARGS} --in-dir {VOLUME:q} {params.provenance} 2> {log:q}"

@@ -4,10 +4,15 @@ A session is two runs of 5-s recordings taken every few minutes after the driver
 "unloaded" (nothing on the sensor) and "loaded" (a known weight placed on the sensor for each
 recording). Recordings are named ``<run>_t<MM>`` (MM = minutes since the bias), both as bags and
 as their Parquet shards; the analysis takes run and time from that name only.
+
+What the analysis needs to know about the session itself (the reference weight put on the sensor
+in the loaded run) comes from ``session.json`` beside the bags, which a rig writes as it records
+and the simulator writes too, so a real session is never analysed with simulator settings.
 """
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -30,3 +35,23 @@ def parse_recording_name(path: str | Path) -> tuple[str, int]:
         raise InputError(path, "drift recording names must look like <run>_t<MM>.bag or .parquet "
                                f"with run one of {'|'.join(RUNS)} (e.g. loaded_t05.parquet)")
     return match["run"], int(match["minutes"])
+
+
+SESSION_META = "session.json"
+
+
+def read_session_meta(path: str | Path) -> dict:
+    """{"reference_load_g": g} of a drift session's ``session.json``; InputError naming the file
+    and the problem when it is missing, unreadable or the weight is not a number >= 0."""
+    path = Path(path)
+    try:
+        meta = json.loads(path.read_text(encoding="utf-8-sig"))
+    except FileNotFoundError:
+        raise InputError(path, 'missing: a drift session states its reference weight here, e.g. '
+                               '{"reference_load_g": 500}') from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(path, f"not valid JSON: {exc}") from None
+    load = meta.get("reference_load_g") if isinstance(meta, dict) else None
+    if isinstance(load, bool) or not isinstance(load, (int, float)) or not load >= 0:
+        raise InputError(path, f"'reference_load_g' must be a weight in grams >= 0, got {load!r}")
+    return {"reference_load_g": float(load)}

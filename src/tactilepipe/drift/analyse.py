@@ -120,7 +120,7 @@ def recording_reading(path: str | Path, run: str, reference_n: float, sensor: in
     return reading(t, fz, run, reference_n, min_step_n, source=path)
 
 
-def drift_series(shard_paths, load_g: float = 500.0, sensor: int = 0, min_step_n: float = 1.0) -> pd.DataFrame:
+def drift_series(shard_paths, load_g: float, sensor: int = 0, min_step_n: float = 1.0) -> pd.DataFrame:
     """One row per recording: run, t_min, unloaded baseline, loaded reading, deviation, drift.
 
     Run and minutes come from the file name ``<run>_t<MM>.parquet`` (InputError naming the file
@@ -368,13 +368,15 @@ def fits_markdown(fits: DriftFits, tolerance_n: float) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run(shards, out_dir: str | Path, params: dict) -> dict:
-    """Shards of one drift session -> metrics.json, drift_series.csv, fits.csv, fits.md, figure."""
+def run(shards, session_meta: str | Path, out_dir: str | Path, params: dict) -> dict:
+    """Shards of one drift session and its session.json -> metrics.json, drift_series.csv,
+    fits.csv, fits.md, figure."""
+    from tactilepipe.drift import read_session_meta
     from tactilepipe.drift.figures import write_drift_figure  # matplotlib only when writing outputs
 
     out_dir = Path(out_dir)
     tolerance = params["drift"]["tolerance_n"]
-    series = drift_series(shards, load_g=params["simulate_drift"]["load_g"])
+    series = drift_series(shards, load_g=read_session_meta(session_meta)["reference_load_g"])
     fits = fit_models(series, params["drift"]["poly_degrees"], tolerance)
     metrics = metrics_dict(series, fits, tolerance)
     write_text(out_dir / "drift_series.csv", series.to_csv(index=False, float_format="%.6g"))

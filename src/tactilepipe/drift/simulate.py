@@ -150,3 +150,10 @@ def write_drift_bag(path: str | Path, name: str, params: dict) -> dict:
                                    np.zeros((len(stamps), 9), np.int32), frame_id=FRAME_ID)
     write_bag(path, {TOPIC: (pa.SENSOR_STATE, stamps.tolist(), raws)})
     return rec
+
+
+def write_session_meta(out_dir: str | Path, params: dict) -> None:
+    """The session's ``session.json``: what the rig knows about it (the weight it put on)."""
+    from tactilepipe.atomic import write_json
+    from tactilepipe.drift import SESSION_META
+    write_json(Path(out_dir) / SESSION_META, {"reference_load_g": params["simulate_drift"]["load_g"]})

@@ -84,8 +84,11 @@ def build_model_report(scene_dir: Path, scene: str, variants: list[str], sweep_r
     fm.pareto(runs, figs / "error_vs_runtime.png")
 
     order = sorted(variants, key=lambda v: evals[v]["mae"])
-    metrics = {v: {k: evals[v][k] for k in ("mae", "rmse", "r2", "slope", "intercept", "train_s", "latency_ms",
+    metrics = {v: {k: evals[v][k] for k in ("mae", "rmse", "r2", "slope", "intercept",
                                           "parameters", "epochs", "depth", "image_size")} for v in variants}
+    # run times change on every run: kept apart so a metrics diff shows what the results did
+    write_json(scene_dir / "runtime.json", {r.name_: {"train_s": float(r.train_s), "latency_ms": float(r.latency_ms)}
+                                            for r in runs.itertuples()})
     metrics["baselines"] = {k: {m: v[m] for m in ("mae", "rmse", "r2")} for k, v in base_evals.items()}
     metrics["ablation_order_by_mae"] = order
     metrics["beats_baselines"] = beats_baselines({v: evals[v] for v in variants}, base_evals)

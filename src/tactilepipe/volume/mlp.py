@@ -40,8 +40,8 @@ class MLPConfig:
 
     @classmethod
     def from_params(cls, p: dict, **overrides) -> "MLPConfig":
-        keys = cls.__dataclass_fields__
-        return cls(**{**{k: p[k] for k in keys if k in p}, **overrides})
+        # every field from the parameters: a key missing there is an error, not a silent default
+        return cls(**{**{k: p[k] for k in cls.__dataclass_fields__}, **overrides})
 
 
 @dataclass

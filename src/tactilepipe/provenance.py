@@ -1,0 +1,92 @@
+"""What made a scene's results: code, parameters, input sessions, packages, machine and commit.
+
+Written as ``provenance.json`` beside each scene's ``metrics.json`` and tracked the same way, so
+`dvc metrics diff` between two commits shows, next to a number that moved, which of these moved
+with it. Run times are kept out of both (``runtime.json``): they change on every run and would
+bury the differences that matter; `dvc metrics diff --targets <scene>/runtime.json` shows them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import platform
+import subprocess
+from importlib import metadata
+from pathlib import Path
+
+from tactilepipe import codedeps
+from tactilepipe.atomic import write_json
+from tactilepipe.config import declared
+
+PACKAGES = ("torch", "numpy", "scikit-learn", "pandas")
+CHUNK = 1 << 20
+
+
+def file_sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while block := fh.read(CHUNK):
+            h.update(block)
+    return h.hexdigest()
+
+
+def session_hash(path: str | Path) -> str:
+    """sha256 over the relative names and contents of every file of a recording session (a folder,
+    or a single file), independent of file times and of the order the files were written in."""
+    path = Path(path)
+    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    h = hashlib.sha256()
+    for f in files:
+        rel = f.relative_to(path).as_posix() if path.is_dir() else f.name
+        h.update(f"{rel}\0{file_sha256(f)}\0".encode())
+    return h.hexdigest()
+
+
+def environment() -> dict:
+    """Package versions and the CPU instruction set the numerical kernels chose (the same code and
+    data give slightly different trained models on different instruction sets)."""
+    versions = {}
+    for name in PACKAGES:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = None
+    env = {"python": platform.python_version(), "packages": versions, "machine": platform.machine()}
+    try:
+        import torch
+        env["torch_cpu_capability"] = torch.backends.cpu.get_cpu_capability()
+    except ImportError:
+        env["torch_cpu_capability"] = None
+    return env
+
+
+def git_state(root: str | Path = ".") -> dict:
+    """The commit the code was at, and whether the workflow's code or parameters had uncommitted
+    changes when the result was made (then the commit alone does not describe it)."""
+    def git(*args):
+        proc = subprocess.run(["git", *args], cwd=root, capture_output=True, text=True)
+        return proc.stdout.strip() if proc.returncode == 0 else None
+    try:
+        commit = git("rev-parse", "HEAD")
+        dirty = git("status", "--porcelain", "--", "src", "workflow", "Snakefile", "params.yaml")
+    except OSError:
+        commit = dirty = None
+    return {"commit": commit, "uncommitted_changes": bool(dirty) if commit else None}
+
+
+def scene_provenance(stages: list[str], params: dict, sessions: list[str | Path]) -> dict:
+    """Provenance of a scene made by the CLI ``stages`` from ``sessions`` under ``params`` (the
+    resolved parameters: each stage's entry records the values it declares)."""
+    return {
+        "stages": {s: {"code_sha256": codedeps.stage_fingerprint(s),
+                       "params": declared(params, codedeps.stage_param_keys(s), s)} for s in stages},
+        "sessions": {str(s): session_hash(s) for s in sessions},
+        "environment": environment(),
+        "git": git_state(),
+    }
+
+
+def write_provenance(path: str | Path, stages: list[str], params: dict, sessions: list[str | Path]) -> dict:
+    prov = scene_provenance(stages, params, sessions)
+    write_json(path, prov)
+    return prov

@@ -1,0 +1,209 @@
+"""Generate dvc.yaml from the Snakemake graph: `make dvc.yaml` (or `python workflow/scripts/dvc_yaml.py`).
+
+DVC and Snakemake must agree on what depends on what, so the DVC stages are derived from the jobs
+Snakemake plans, never written by hand. The only choices made here are the stages themselves:
+a name and the Snakemake targets its command builds (one stage per scene step). For each stage:
+- outs: the files its jobs write, each folded into the largest folder that holds nothing but
+  this stage's outputs (a recording session at most under raw/); metrics.json and
+  provenance.json are metrics and runtime.json an out, all three `cache: false` (kept in git);
+- deps: the outputs of other stages its jobs read (as those stages declare them), the raw
+  recordings folder of each scene it reads, every source file of the CLI stages its rules run
+  (their import closure), and the rule files that define its jobs;
+- params: the dotted keys its CLI stages declare and the keys the rules read to shape the graph,
+  plus the active scale's overlay (`scales.${scale}`), which may change any of them.
+
+`--check` exits 1 and prints a diff when dvc.yaml differs from what would be generated.
+"""
+
+from __future__ import annotations
+
+import argparse
+import difflib
+import io
+import sys
+from pathlib import Path
+
+import yaml
+
+from tactilepipe import codedeps
+from tactilepipe.atomic import write_text
+
+STAGES = [  # (name, Snakemake targets); "{scale}" is written as DVC's ${scale}
+    ("simulate_volume", ["raw/volume/sim-{scale}/lifts.csv"]),
+    ("simulate_drift", ["raw/drift/sim-{scale}/session.json"]),
+    ("volume", ["volume_report"]),
+    ("drift", ["drift_report"]),
+    ("simulate_tool", ["raw/tool/sim-{scale}/nano17.cal"]),
+    ("tool_data", ["tool_data"]),
+    ("tool_models", ["results/tool_normal/metrics.json", "results/tool_shear/metrics.json"]),
+]
+COMMAND = "snakemake --cores 2 --workflow-profile workflow/profiles/default"
+METRICS = {"metrics.json", "provenance.json"}
+UNCACHED_OUTS = {"runtime.json"}
+ALWAYS_RULE_FILES = ["Snakefile", "workflow/rules/common.smk"]
+HEADER = """\
+# GENERATED from the Snakemake graph by `make dvc.yaml` (workflow/scripts/dvc_yaml.py): do not edit.
+# Each stage runs Snakemake targets, so the logic exists once (workflow/rules); its deps are the
+# data it reads, the source files of the code it runs and its rule files; its params the keys
+# that code declares. tests/test_dvc_graph.py fails when this file is not what the generator makes.
+"""
+
+
+def build_jobs(targets: list[str]):
+    """Every job Snakemake plans for ``targets`` (forced, so up-to-date jobs are listed too)."""
+    from snakemake.api import SnakemakeApi
+    from snakemake.settings.enums import Quietness
+    from snakemake.settings.types import ConfigSettings, DAGSettings, OutputSettings, ResourceSettings
+
+    with SnakemakeApi(OutputSettings(quiet={Quietness.ALL})) as api:
+        wapi = api.workflow(resource_settings=ResourceSettings(cores=1), config_settings=ConfigSettings(),
+                            snakefile=Path("Snakefile"), workdir=Path.cwd())
+        wapi.dag(DAGSettings(targets=set(targets), forceall=True))
+        # The public API plans and runs; the plan alone is on the workflow object (pinned version).
+        wf = wapi._workflow
+        wf._prepare_dag(forceall=True, ignore_incomplete=True, lock_warn_only=True, nolock=True)
+        wf._build_dag()
+        dag = wf.dag
+        return list(dag.jobs), dag.dependencies
+
+
+def stage_of_jobs(jobs, dependencies, targets_of: dict[str, list[str]]) -> dict:
+    """{job: stage}: each job belongs to the first stage (in STAGES order) whose targets need it."""
+    by_output = {str(f): j for j in jobs for f in j.output}
+    by_rule = {}
+    for j in jobs:
+        by_rule.setdefault(j.rule.name, []).append(j)
+    owner = {}
+    for stage, targets in targets_of.items():
+        todo = [by_output[t] if t in by_output else by_rule[t][0] for t in targets]
+        while todo:
+            j = todo.pop()
+            if j in owner:
+                continue
+            owner[j] = stage
+            todo.extend(dependencies[j])
+    return owner
+
+
+def _under(path: str, folder: str) -> bool:
+    return path == folder or path.startswith(folder.rstrip("/") + "/")
+
+
+def fold_outputs(files: list[str], stage: str, output_stage: dict[str, str]) -> list[str]:
+    """Each output file of ``stage`` folded into the largest folder whose outputs are all this
+    stage's and hold no metrics or run-time files (those are declared on their own)."""
+    special = {f for f in output_stage if Path(f).name in METRICS | UNCACHED_OUTS}
+
+    def owned(folder: str) -> bool:
+        inside = [f for f in output_stage if _under(f, folder)]
+        return all(output_stage[f] == stage for f in inside) and not any(_under(f, folder) for f in special)
+
+    entries = set()
+    for f in files:
+        entry, parts = f, Path(f).parts
+        limit = 3                                        # raw/<scene>/<session>, results/<scene>/<step>
+        for depth in range(len(parts) - 1, limit - 1, -1):
+            folder = str(Path(*parts[:depth]))
+            if not owned(folder):
+                break
+            entry = folder
+        entries.add(entry)
+    return sorted(entries)
+
+
+def generate(params: dict) -> str:
+    scale = params["scale"]
+    targets_of = {name: [t.replace("{scale}", scale) for t in targets] for name, targets in STAGES}
+    jobs, dependencies = build_jobs([t for ts in targets_of.values() for t in ts])
+    owner = stage_of_jobs(jobs, dependencies, targets_of)
+    output_stage = {str(f): owner[j] for j in jobs if j in owner for f in j.output}
+    sim = f"sim-{scale}"
+
+    def dvc_path(path: str) -> str:
+        return "/".join("sim-${scale}" if part == sim else part for part in Path(path).parts)
+
+    folded = {name: fold_outputs([f for f, s in output_stage.items() if s == name
+                                  and Path(f).name not in METRICS | UNCACHED_OUTS], name, output_stage)
+              for name, _ in STAGES}
+    doc = {"stages": {}}
+    plots = []
+    for name, targets in STAGES:
+        own = [j for j in jobs if owner.get(j) == name]
+        deps, code, rule_files, keys = set(), set(), set(ALWAYS_RULE_FILES), {"scale"}
+        for j in own:
+            rule_files.add(str(Path(j.rule.snakefile).resolve().relative_to(Path.cwd().resolve())))
+            declared = j.params.get("declared")
+            if declared:
+                stage = declared["stage"]
+                expected = {str(codedeps.module_path(m).resolve().relative_to(Path.cwd().resolve()))
+                            for m in codedeps.stage_modules(stage)}
+                listed = {str(f) for f in j.input if str(f).endswith(".py")}
+                if listed != expected:
+                    raise SystemExit(f"rule {j.rule.name}: its code inputs are not the closure of {stage}")
+                keys.update(codedeps.stage_param_keys(stage))
+            if j.params.get("graph"):
+                keys.update(j.params["graph"]["keys"])
+            for f in map(str, j.input):
+                if f.endswith(".py"):
+                    code.add(f)
+                elif output_stage.get(f) == name:
+                    continue
+                elif f.startswith("raw/"):
+                    deps.add("/".join(Path(f).parts[:2]))
+                elif f in output_stage:
+                    deps.add(next(o for o in folded[output_stage[f]] if _under(f, o)))
+                else:
+                    deps.add(f)
+        outs = folded[name]
+        special = sorted(f for f, s in output_stage.items() if s == name and Path(f).name in METRICS | UNCACHED_OUTS)
+        stage = {"cmd": f"{COMMAND} " + " ".join(t.replace("{scale}", "${scale}") for t in targets),
+                 "deps": sorted(deps) + sorted(code) + sorted(rule_files),
+                 "params": _outermost(keys) + ["scales.${scale}"]}
+        # sessions, shards and trained models are kept while a stage re-runs: Snakemake inside it
+        # rebuilds exactly the out-of-date ones (persist), which is what makes a new session cheap
+        stage["outs"] = [{dvc_path(o): {"persist": True}} if _persisted(o) else dvc_path(o) for o in outs]
+        stage["outs"] += [{f: {"cache": False}} for f in special if Path(f).name in UNCACHED_OUTS]
+        metrics = [{f: {"cache": False}} for f in special if Path(f).name in METRICS]
+        if metrics:
+            stage["metrics"] = metrics
+        doc["stages"][name] = stage
+        plots += sorted(dvc_path(f) for f, s in output_stage.items() if s == name and f.endswith(".png"))
+    doc["plots"] = plots
+    out = io.StringIO()
+    out.write(HEADER)
+    yaml.safe_dump(doc, out, sort_keys=False, width=110)
+    return out.getvalue()
+
+
+def _outermost(keys: set[str]) -> list[str]:
+    """Sorted keys without those inside another listed key ("mlp.tol" goes when "mlp" is there)."""
+    return sorted(k for k in keys if not any(k.startswith(other + ".") for other in keys))
+
+
+def _persisted(out: str) -> bool:
+    parts = Path(out).parts
+    return parts[0] == "raw" or "shards" in parts or "models" in parts
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true", help="exit 1 with a diff if dvc.yaml is not generated")
+    parser.add_argument("--out", default="dvc.yaml")
+    args = parser.parse_args(argv)
+    params = yaml.safe_load(Path("params.yaml").read_text())
+    text = generate(params)
+    current = Path(args.out).read_text() if Path(args.out).exists() else ""
+    if args.check:
+        if text != current:
+            sys.stdout.writelines(difflib.unified_diff(current.splitlines(True), text.splitlines(True),
+                                                       f"{args.out} (committed)", f"{args.out} (generated)"))
+            print(f"\n{args.out} is not what the Snakemake graph gives: run `make dvc.yaml` and commit it.")
+            return 1
+        return 0
+    if text != current:
+        write_text(args.out, text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
