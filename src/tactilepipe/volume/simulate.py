@@ -126,23 +126,26 @@ def normal_load_map(grip: np.ndarray, offsets: np.ndarray, tilt: np.ndarray, pit
     return np.where(grip[:, None] > 0, fz, 0.0)
 
 
-def tangential_forces(demand: np.ndarray, fz: np.ndarray, k_t: float, mu_s: float, mu_k: float
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Stick/slip pillar shear for one pad over time.
+class PadFriction:
+    """Stick/slip state of one pad's 9 pillars, advanced one sample at a time.
 
-    demand: (T, 2) shear (x, y) the pad must carry; fz: (T, 9) pillar normal forces.
-    Returns pillar shear (T, 9, 2), slipping flags (T, 9) and gross-slip flags (T,) (the whole pad
-    slides: it carries only the kinetic limit). Each step solves exactly which pillars stick: the
-    sticking ones share one pad displacement u, sliding ones pull with mu_k f_z along their stretch.
+    Each step solves exactly which pillars stick: the sticking ones share one pad displacement u,
+    sliding ones pull with mu_k f_z along their stretch. A regime whose grip reacts to slip
+    (``retighten``) needs the slip of sample k before it sets the grip of sample k + 1, so the
+    solve is a step, not a whole-lift function.
     """
-    n = len(demand)
-    anchor = np.zeros((9, 2))     # where each pillar's spring is unstretched (moves when it slides)
-    forces = np.zeros((n, 9, 2))
-    slipping = np.zeros((n, 9), bool)
-    gross = np.zeros(n, bool)
-    u = np.zeros(2)
-    for k in range(n):
-        contact = fz[k] > 0
+
+    def __init__(self, k_t: float, mu_s: float, mu_k: float):
+        self.k_t, self.mu_s, self.mu_k = k_t, mu_s, mu_k
+        self.anchor = np.zeros((9, 2))   # where each pillar's spring is unstretched (moves when it slides)
+        self.u = np.zeros(2)
+
+    def step(self, demand: np.ndarray, fz: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+        """Pillar shear (9, 2), slipping flags (9,) and gross slip for shear ``demand`` (2,) and
+        pillar normal forces ``fz`` (9,)."""
+        k_t, mu_s, mu_k, anchor = self.k_t, self.mu_s, self.mu_k, self.anchor
+        u = self.u
+        contact = fz > 0
         anchor[~contact] = u      # a pillar off the wall relaxes and re-sticks where it lands
         stick = contact.copy()
         slide_force = np.zeros((9, 2))
@@ -151,27 +154,46 @@ def tangential_forces(demand: np.ndarray, fz: np.ndarray, k_t: float, mu_s: floa
             pull = slide_force[contact & ~stick].sum(axis=0)
             if n_stick == 0:
                 break
-            u = (demand[k] - pull + k_t * anchor[stick].sum(axis=0)) / (k_t * n_stick)
+            u = (demand - pull + k_t * anchor[stick].sum(axis=0)) / (k_t * n_stick)
             f = k_t * (u - anchor)
             mag = np.linalg.norm(f, axis=1)
-            over = stick & (mag > mu_s * fz[k])
+            over = stick & (mag > mu_s * fz)
             if not over.any():
                 break
             # the most overloaded pillars start sliding at the kinetic limit along their stretch
-            slide_force[over] = (mu_k * fz[k][over] / mag[over])[:, None] * f[over]
+            slide_force[over] = (mu_k * fz[over] / mag[over])[:, None] * f[over]
             stick &= ~over
         f = np.where(stick[:, None], k_t * (u - anchor), slide_force)
         f[~contact] = 0.0
         sliding = contact & ~stick
+        gross = False
         if stick.sum() == 0 and contact.any():
-            cap = mu_k * fz[k][contact].sum()
-            want = np.linalg.norm(demand[k])
-            gross[k] = want > cap
-            direction = demand[k] / want if want > 0 else np.zeros(2)
-            f[contact] = (mu_k * fz[k][contact])[:, None] * direction
+            cap = mu_k * fz[contact].sum()
+            want = np.linalg.norm(demand)
+            gross = bool(want > cap)
+            direction = demand / want if want > 0 else np.zeros(2)
+            f[contact] = (mu_k * fz[contact])[:, None] * direction
         # a sliding pillar's anchor follows so that its spring holds exactly the kinetic force
         anchor[sliding] = u - f[sliding] / k_t
-        forces[k], slipping[k] = f, sliding
+        self.u = u
+        return f, sliding, gross
+
+
+def tangential_forces(demand: np.ndarray, fz: np.ndarray, k_t: float, mu_s: float, mu_k: float
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stick/slip pillar shear for one pad over time.
+
+    demand: (T, 2) shear (x, y) the pad must carry; fz: (T, 9) pillar normal forces.
+    Returns pillar shear (T, 9, 2), slipping flags (T, 9) and gross-slip flags (T,) (the whole pad
+    slides: it carries only the kinetic limit).
+    """
+    n = len(demand)
+    pad = PadFriction(k_t, mu_s, mu_k)
+    forces = np.zeros((n, 9, 2))
+    slipping = np.zeros((n, 9), bool)
+    gross = np.zeros(n, bool)
+    for k in range(n):
+        forces[k], slipping[k], gross[k] = pad.step(demand[k], fz[k])
     return forces, slipping, gross
 
 
