@@ -182,14 +182,14 @@ def test_paper_table_has_the_paper_ordering():
 def comparison(tmp_path_factory, smoke_params) -> Path:
     out = tmp_path_factory.mktemp("regimes") / "out"
     code = main(["volume-regimes", "--params", str(REPO_ROOT / "params.yaml"), "--scale", "smoke",
-                 "--out-dir", str(out), "--jobs", "1", "--regimes", "force", "position"])
+                 "--out-dir", str(out), "--jobs", "1", "--regimes", "force", "position", "retighten"])
     assert code == 0
     return out
 
 
 def test_comparison_writes_tables_figures_and_metrics(comparison):
     table = pd.read_csv(comparison / "table1_regimes.csv")
-    assert list(table["regime"]) == ["force", "position", "paper"]
+    assert list(table["regime"]) == ["force", "position", "retighten", "paper"]
     paper = table.set_index("regime").loc["paper"]
     assert paper["fz_mean"] == 0.9842 and paper["mu_star"] == 0.268
     md = (comparison / "table1_regimes.md").read_text()
@@ -197,7 +197,7 @@ def test_comparison_writes_tables_figures_and_metrics(comparison):
     for fig in ("r2_by_regime.png", "fz_vs_volume.png"):
         assert (comparison / "figures" / fig).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     metrics = json.loads((comparison / "metrics.json").read_text())
-    assert set(metrics["regimes"]) == {"force", "position"}
+    assert set(metrics["regimes"]) == {"force", "position", "retighten"}
     assert not list(comparison.glob(".scratch-*"))       # bags and shards are not left behind
 
 
@@ -206,9 +206,18 @@ def test_comparison_shows_each_regimes_physics(comparison):
     force, position = (metrics["regimes"][r]["r2"] for r in ("force", "position"))
     assert force["fz"]["mean"] < 0.3 < force["fy"]["mean"]     # force control: Fz carries no volume
     assert position["fz"]["mean"] > force["fz"]["mean"] + 0.3  # position: the grip carries the fill
-    grip = pd.read_csv(comparison / "fz_vs_volume.csv")
-    pos = grip[grip["regime"] == "position"].sort_values("volume_ml")
-    assert pos["fz_mean_n"].iloc[-1] > pos["fz_mean_n"].iloc[0] + 0.5
+    grip = pd.read_csv(comparison / "fz_vs_volume.csv").set_index(["regime", "volume_ml"])
+    for phase in ("fz_before", "fz", "fz_after"):       # the squeeze is set before the lift
+        assert grip.loc[("position", 300.0), f"{phase}_mean_n"] > grip.loc[("position", 0.0), f"{phase}_mean_n"] + 0.5
+    # retighten: the grip is the setting on the table before lift-off and rises only under the load
+    rt = grip.loc["retighten"]
+    assert abs(rt.loc[300.0, "fz_before_mean_n"] - rt.loc[0.0, "fz_before_mean_n"]) < 0.45
+    assert rt.loc[300.0, "fz_mean_n"] > rt.loc[300.0, "fz_before_mean_n"] + 0.3
+    assert rt.loc[300.0, "fz_after_mean_n"] > rt.loc[300.0, "fz_before_mean_n"] + 0.3   # kept until opening
+    qc = pd.read_csv(comparison / "qc_force.csv")
+    assert qc[["fz_before_lift", "fz_held", "fz_after_place"]].notna().all().all()
+    # force control: the grip before lift-off is the grip held, lift by lift (drift and noise apart)
+    np.testing.assert_allclose(qc["fz_held"], qc["fz_before_lift"], atol=0.15)
 
 
 def test_unknown_regime_is_refused(tmp_path, capsys):

@@ -13,7 +13,7 @@ rule volume_regimes:
         bars=f"{REGIMES}/figures/r2_by_regime.png",
         grip_figure=f"{REGIMES}/figures/fz_vs_volume.png",
         metrics=f"{REGIMES}/metrics.json",
-        qc=[f"{REGIMES}/qc_{name}.csv" for name in P["volume_regimes"]],
+        qc=[f"{REGIMES}/qc_{name}.csv" for name in P["volume_regimes"]["regimes"]],
     params:
         regimes=P["volume_regimes"],
         physics=P["simulate_volume"],

@@ -43,18 +43,28 @@ def r2_by_regime(table: pd.DataFrame, methods: list[str], out: Path) -> None:
     close(fig)
 
 
-def fz_vs_volume(qc: pd.DataFrame, out: Path) -> None:
-    """Mean off-table Fz of every lift against its volume, one colour per regime: the rig
-    measurement that separates the regimes (flat under force control)."""
-    fig, ax = figure(4.8, 3.2)
-    for regime, part in qc.groupby("regime", sort=False):
-        jitter = (np.arange(len(part)) % 5 - 2) * 1.5
-        points = ax.plot(part["volume_ml"] + jitter, part["mean_fz0"], "o", ms=2.5, alpha=0.5)
-        means = part.groupby("volume_ml")["mean_fz0"].mean()
-        ax.plot(means.index, means.to_numpy(), "-", color=points[0].get_color(), lw=1.4, label=regime)
-    ax.set_xlabel("water volume (ml)")
-    ax.set_ylabel("mean off-table Fz of sensor 0 (N)")
-    ax.set_title("Grip (normal) force against volume")
-    ax.legend(fontsize=8)
+LINE_STYLES = ["-", "--", ":", "-."]
+PHASES = [("fz_before_lift", "on the table, before lift-off"), ("fz_held", "held off the table"),
+          ("fz_after_place", "on the table, after set-down")]
+
+
+def fz_vs_volume(qc: pd.DataFrame, sensor: int, out: Path) -> None:
+    """Mean Fz of every lift against its volume in the three phases, one colour per regime: the
+    rig measurement that separates the regimes (flat in all three under force control)."""
+    fig, axes = figure(9.6, 3.2, ncols=len(PHASES), sharey=True)
+    for ax, (column, title) in zip(axes, PHASES):
+        for k, (regime, part) in enumerate(qc.groupby("regime", sort=False)):
+            color = f"C{k}"
+            jitter = (np.arange(len(part)) % 5 - 2) * 1.5
+            ax.plot(part["volume_ml"] + jitter, part[column], "o", ms=2, alpha=0.4, color=color)
+            means = part.groupby("volume_ml")[column].mean()
+            # regimes that agree draw the same curve: line styles keep each visible
+            ax.plot(means.index, means.to_numpy(), LINE_STYLES[k % len(LINE_STYLES)], color=color, lw=1.4,
+                    label=regime)
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("water volume (ml)")
+    axes[0].set_ylabel(f"mean Fz of sensor {sensor} per lift (N)")
+    axes[0].legend(fontsize=7)
+    fig.suptitle("Grip (normal) force against volume, gripper closed at the same setting", fontsize=10)
     save_figure(out, fig)
     close(fig)

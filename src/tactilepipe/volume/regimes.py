@@ -1,12 +1,14 @@
 """Table 1 of study 001 under each grasp regime of the simulator, next to the paper's values.
 
-Each regime (params.yaml ``volume_regimes``: an overlay of the grasp keys of ``simulate_volume``)
+Each regime (params.yaml ``volume_regimes.regimes``: an overlay of the grasp keys of ``simulate_volume``)
 records a whole simulated session and runs it through the same library functions as the volume
 scene: bags -> shards -> off-table dataset -> folds -> MLP per modality -> mu-swept baseline.
 Only the recordings differ between regimes; nothing downstream of the bags sees the regime.
-Bags and shards go to a scratch folder inside ``out_dir`` that is removed at the end; what stays
-is the comparison (tables, figures, metrics.json) and each regime's per-lift QC (``qc_<regime>.csv``:
-the mean off-table Fy and Fz of every lift, the measurement that tells the regimes apart).
+Bags and shards go to a scratch folder inside ``out_dir`` that is removed after each regime; what
+stays is the comparison (tables, figures, metrics.json) and each regime's per-lift QC
+(``qc_<regime>.csv``): the mean off-table Fy and Fz of every lift and its Fz with the gripper closed
+on the table before lift-off and after set-down (``grip_on_table``), the measurements that tell the
+regimes apart.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from tactilepipe.atomic import write_json, write_text
 from tactilepipe.shards import ingest_bag
 from tactilepipe.volume import simulate
 from tactilepipe.volume.baseline import sweep
-from tactilepipe.volume.dataset import build_dataset, session_lifts
+from tactilepipe.volume.dataset import build_dataset, off_table_segment, read_shard, session_lifts
 from tactilepipe.volume.folds import make_folds
 from tactilepipe.volume.mlp import MLPConfig
 from tactilepipe.volume.report import _json_safe
@@ -58,10 +60,34 @@ def record_session(sim: dict, seed: int, raw_dir: Path, shard_dir: Path, jobs: i
     simulate.write_session_labels(raw_dir, plan)
 
 
+def grip_on_table(lifts: pd.DataFrame, seg: dict, window: dict, sensor: int) -> pd.DataFrame:
+    """Mean Fz of ``sensor`` per lift in three phases: on the table with the gripper closed before
+    lift-off (a window of ``window_s`` ending ``guard_s`` before the off-table phase), held off the
+    table, and on the table after set-down (a window starting ``guard_s`` after the off-table phase);
+    and the held Fy. Columns lift, fz_before_lift, fz_held, fz_after_place, fy_held (NaN when the
+    recording does not reach a window)."""
+    rows = []
+    for row in lifts.itertuples(index=False):
+        rec = read_shard(row.shard)
+        start, stop, _ = off_table_segment(rec, seg, row.shard)
+        t, fz, fy = rec["t"], rec[f"fz{sensor}"], rec[f"fy{sensor}"]
+        t_up, t_down = t[start] - window["guard_s"], t[stop - 1] + window["guard_s"]
+        before = (t >= t_up - window["window_s"]) & (t < t_up)
+        after = (t > t_down) & (t <= t_down + window["window_s"])
+        rows.append({"lift": row.lift,
+                     "fz_before_lift": float(fz[before].mean()) if before.any() else float("nan"),
+                     "fz_held": float(fz[start:stop].mean()), "fy_held": float(fy[start:stop].mean()),
+                     "fz_after_place": float(fz[after].mean()) if after.any() else float("nan")})
+    return pd.DataFrame(rows)
+
+
 def analyse_session(p: dict, session: str, raw_root: Path, shard_root: Path) -> dict:
     """The volume scene's analysis of one session: R² per modality and of the baseline over the
-    folds, mu*, and the per-lift QC table."""
-    data, qc = build_dataset(session_lifts([session], raw_root, shard_root), p["segment"])
+    folds, mu*, and the per-lift QC table (with the on-table grip of ``grip_on_table``)."""
+    lifts_table = session_lifts([session], raw_root, shard_root)
+    data, qc = build_dataset(lifts_table, p["segment"])
+    qc = qc.merge(grip_on_table(lifts_table, p["segment"], p["volume_regimes"]["on_table"], p["volume_sensor"]),
+                  on="lift", how="left")
     lifts = data[["lift", "volume_ml", "set"]].drop_duplicates("lift")
     f = p["folds"]
     folds = make_folds(lifts, f["n_folds"], f["train_lifts_per_volume"], f["test_lifts_per_volume"],
@@ -86,18 +112,19 @@ def reproduces_ordering(r2: dict) -> bool:
 def compare_regimes(p: dict, out_dir: Path, jobs: int = 1, only: list[str] | None = None) -> dict:
     """Run every regime of ``p["volume_regimes"]`` (or ``only`` these) and write the comparison."""
     from tactilepipe.errors import ConfigError
-    regimes = p["volume_regimes"]
+    regimes = p["volume_regimes"]["regimes"]
     names = list(only) if only else list(regimes)
     unknown = [n for n in names if n not in regimes]
     if unknown:
-        raise ConfigError(f"--regimes: {unknown} not in params.yaml volume_regimes ({sorted(regimes)})")
+        raise ConfigError(f"--regimes: {unknown} not in params.yaml volume_regimes.regimes ({sorted(regimes)})")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     results = {}
-    with tempfile.TemporaryDirectory(prefix=".scratch-", dir=out_dir) as scratch:
-        for name in names:
-            sim = {**p["simulate_volume"], **regimes[name]}
-            session = f"sim-{name}"
+    for name in names:
+        sim = {**p["simulate_volume"], **regimes[name]}
+        session = f"sim-{name}"
+        # a default-scale session is ~0.4 GB of bags: one regime's scratch at a time
+        with tempfile.TemporaryDirectory(prefix=".scratch-", dir=out_dir) as scratch:
             raw_root, shard_root = Path(scratch) / "raw", Path(scratch) / "shards"
             record_session(sim, p["seed"], raw_root / session, shard_root / session, jobs)
             results[name] = analyse_session(p, session, raw_root, shard_root)
@@ -138,19 +165,22 @@ def write_comparison(results: dict, overlays: dict, p: dict, out_dir: Path) -> d
     write_text(out_dir / "table1_regimes.md", "\n".join(lines) + "\n")
 
     grip = pd.concat([res["qc"][res["qc"]["set"] == "main"].assign(regime=name) for name, res in results.items()])
-    by_volume = (grip.groupby(["regime", "volume_ml"], sort=False)[["mean_fz0", "mean_fy0"]]
-                 .agg(["mean", "std"]).reset_index())
-    by_volume.columns = ["regime", "volume_ml", "fz_mean_n", "fz_std_n", "fy_mean_n", "fy_std_n"]
+    cols = {"fz_before_lift": "fz_before", "fz_held": "fz", "fz_after_place": "fz_after", "fy_held": "fy"}
+    by_volume = grip.groupby(["regime", "volume_ml"], sort=False)[list(cols)].agg(["mean", "std"]).reset_index()
+    by_volume.columns = ["regime", "volume_ml"] + [f"{cols[c]}_{k}_n" for c in cols for k in ("mean", "std")]
     write_text(out_dir / "fz_vs_volume.csv", by_volume.to_csv(index=False))
-    vol_lines = ["**Mean off-table force of sensor 0 per lift, by volume (mean ± std over lifts, N)**", "",
-                 "| regime | volume (ml) | Fz | Fy |", "|---|---|---|---|"]
-    for r in by_volume.itertuples():
-        vol_lines.append(f"| {r.regime} | {r.volume_ml:g} | {r.fz_mean_n:.3f} ± {r.fz_std_n:.3f} | "
-                         f"{r.fy_mean_n:.3f} ± {r.fy_std_n:.3f} |")
+    sensor = p["volume_sensor"]
+    vol_lines = [f"**Sensor {sensor} per lift, by volume (mean ± std over lifts, N): Fz on the table before "
+                 f"lift-off, Fz and Fy held off the table, Fz on the table after set-down**", "",
+                 "| regime | volume (ml) | Fz before lift-off | Fz held | Fz after set-down | Fy held |",
+                 "|---|---|---|---|---|---|"]
+    for r in by_volume.to_dict("records"):
+        cells = [f"{r[f'{c}_mean_n']:.3f} ± {r[f'{c}_std_n']:.3f}" for c in ("fz_before", "fz", "fz_after", "fy")]
+        vol_lines.append(f"| {r['regime']} | {r['volume_ml']:g} | " + " | ".join(cells) + " |")
     write_text(out_dir / "fz_vs_volume.md", "\n".join(vol_lines) + "\n")
 
     figures_regimes.r2_by_regime(table, COLUMNS, out_dir / "figures" / "r2_by_regime.png")
-    figures_regimes.fz_vs_volume(grip, out_dir / "figures" / "fz_vs_volume.png")
+    figures_regimes.fz_vs_volume(grip, p["volume_sensor"], out_dir / "figures" / "fz_vs_volume.png")
     metrics = {"scale": p["scale"], "seed": p["seed"], "paper": {"r2": {m: {"mean": v[0], "std": v[1]}
                                                                         for m, v in PAPER_R2.items()},
                                                                  "mu_star": PAPER_MU_STAR},
