@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from tactilepipe.atomic import write_json, write_text
+from tactilepipe.errors import ConfigError
 from tactilepipe.shards import ingest_bag
 from tactilepipe.volume import simulate
 from tactilepipe.volume.baseline import sweep
@@ -111,7 +112,6 @@ def reproduces_ordering(r2: dict) -> bool:
 
 def compare_regimes(p: dict, out_dir: Path, jobs: int = 1, only: list[str] | None = None) -> dict:
     """Run every regime of ``p["volume_regimes"]`` (or ``only`` these) and write the comparison."""
-    from tactilepipe.errors import ConfigError
     regimes = p["volume_regimes"]["regimes"]
     names = list(only) if only else list(regimes)
     unknown = [n for n in names if n not in regimes]
