@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SNAKEMAKE := $(BIN)/snakemake --cores 2 --workflow-profile workflow/profiles/default
 
-.PHONY: run test test-slurm smoke bench clean-results pull dvc.yaml
+.PHONY: run test test-slurm smoke regimes bench clean-results pull dvc.yaml
 
 $(STAMP): requirements.txt pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -20,6 +20,9 @@ run: $(STAMP)  ## rebuild all results of params.yaml's scenes at its scale
 
 smoke: $(STAMP)  ## the whole pipeline at the smoke scale (about a minute)
 	PATH=$(CURDIR)/$(BIN):$$PATH $(SNAKEMAKE) --config scale=smoke
+
+regimes: $(STAMP)  ## Table 1 under each grasp regime (results/volume_regimes; SCALE=smoke for a quick one)
+	PATH=$(CURDIR)/$(BIN):$$PATH $(SNAKEMAKE) volume_regimes $(if $(SCALE),--config scale=$(SCALE))
 
 test: $(STAMP)  ## the whole test suite (unit + smoke-scale integration through real Snakemake)
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest
@@ -40,4 +43,4 @@ dvc.yaml: $(STAMP)  ## regenerate dvc.yaml from the Snakemake graph (run after e
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python workflow/scripts/dvc_yaml.py
 
 clean-results:  ## remove generated results (raw recordings stay)
-	rm -rf results/volume results/drift results/logs
+	rm -rf results/volume results/volume_regimes results/drift results/logs

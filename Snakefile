@@ -11,6 +11,7 @@ include: "workflow/rules/ingest.smk"
 include: "workflow/rules/volume.smk"
 include: "workflow/rules/drift.smk"
 include: "workflow/rules/tool.smk"
+include: "workflow/rules/regimes.smk"
 
 
 rule all:

@@ -169,23 +169,11 @@ def cmd_predict(args) -> None:
     stream_predictions(Path(args.checkpoint), Path(args.trial), args.format, p, limit=args.limit)
 
 
-def _session_lifts(p: dict, raw_root: Path, shard_root: Path):
-    import pandas as pd
-    from tactilepipe.volume.simulate import read_session_labels
-    rows = []
-    for session in p["volume_sessions"]:
-        for row in read_session_labels(raw_root / session):
-            stem = Path(row["bag"]).stem
-            rows.append({"lift": f"{session}/{stem}", "session": session, "volume_ml": row["volume_ml"],
-                         "set": row["set"], "shard": str(shard_root / session / f"{stem}.parquet")})
-    return pd.DataFrame(rows)
-
-
 def cmd_dataset(args) -> None:
     from tactilepipe.atomic import write_parquet, write_text
-    from tactilepipe.volume.dataset import build_dataset
+    from tactilepipe.volume.dataset import build_dataset, session_lifts
     p = _params(args, "volume_sessions", "segment")
-    lifts = _session_lifts(p, Path(args.raw_root), Path(args.shard_root))
+    lifts = session_lifts(p["volume_sessions"], Path(args.raw_root), Path(args.shard_root))
     data, qc = build_dataset(lifts, p["segment"])
     write_parquet(args.out, data)
     write_text(args.qc, qc.to_csv(index=False))
@@ -270,6 +258,13 @@ def cmd_report_tool_data(args) -> None:
     p = _params(args, "tool_split.level_n")
     label = "normal" if args.what == "tool_normal" else "shear"
     build_data_report(Path(args.in_dir) / "data", Path(args.in_dir), label, p["tool_split"]["level_n"])
+def cmd_volume_regimes(args) -> None:
+    from tactilepipe.volume.regimes import compare_regimes
+    p = _params(args, "scale", "seed", "simulate_volume", "segment", "folds", "mlp", "baseline", "volume_sensor",
+                "volume_regimes")
+    metrics = compare_regimes(p, Path(args.out_dir), args.jobs, args.regimes)
+    print(json.dumps({name: {"r2": {m: round(v["mean"], 4) for m, v in r["r2"].items()}, "mu_star": r["mu_star"]}
+                      for name, r in metrics["regimes"].items()}))
 
 
 def cmd_report(args) -> None:
@@ -375,6 +370,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--folds", required=True)
     s.add_argument("--out-dir", required=True)
     s.set_defaults(func=cmd_baseline)
+
+    s = sub.add_parser("volume-regimes", parents=[common],
+                       help="Table 1 of the volume study under each grasp regime (params.yaml volume_regimes)")
+    s.add_argument("--out-dir", required=True, help="e.g. results/volume_regimes")
+    s.add_argument("--regimes", nargs="*", help="only these regimes (default: all of volume_regimes)")
+    s.add_argument("--jobs", type=int, default=1, help="worker processes for the simulation (default 1)")
+    s.set_defaults(func=cmd_volume_regimes)
 
     s = sub.add_parser("report", parents=[common, provenance], help="metrics.json, tables and figures of a scene")
     s.add_argument("what", choices=["volume", "drift", "tool_normal", "tool_shear"])

@@ -88,6 +88,11 @@ def _check_consistency(p: dict, source: str) -> None:
         raise ConfigError(f"{source}: tool_split.fractions must sum to 1 (got {p['tool_split']['fractions']})")
     if p["simulate_volume"]["friction_kinetic"] > p["simulate_volume"]["friction_static"]:
         raise ConfigError(f"{source}: simulate_volume.friction_kinetic must not exceed friction_static")
+    pos = sim["position"]
+    fullest = max(sim["volumes_ml"] + sim["unseen_volumes_ml"])
+    if pos["container_capped"] and pos["container_capacity_ml"] <= fullest:
+        raise ConfigError(f"{source}: simulate_volume.position.container_capacity_ml={pos['container_capacity_ml']:g} "
+                          f"leaves no headspace above the fullest volume ({fullest:g} ml)")
 
 
 def load_params(path: str | Path = DEFAULT_PARAMS, overrides: dict | None = None) -> dict[str, Any]:

@@ -119,6 +119,19 @@ def off_table_segment(rec: dict, seg: dict, path: str | Path = "?") -> tuple[int
     return start, stop, used
 
 
+def session_lifts(sessions: list[str], raw_root: Path, shard_root: Path) -> pd.DataFrame:
+    """One row per lift of the sessions (lift, session, volume_ml, set, shard), from each session's
+    lifts.csv; the shard of raw_root/<session>/<bag> is shard_root/<session>/<bag stem>.parquet."""
+    from tactilepipe.volume.simulate import read_session_labels
+    rows = []
+    for session in sessions:
+        for row in read_session_labels(Path(raw_root) / session):
+            stem = Path(row["bag"]).stem
+            rows.append({"lift": f"{session}/{stem}", "session": session, "volume_ml": row["volume_ml"],
+                         "set": row["set"], "shard": str(Path(shard_root) / session / f"{stem}.parquet")})
+    return pd.DataFrame(rows)
+
+
 def build_dataset(lifts: pd.DataFrame, seg: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Off-table samples of every lift, and a QC row per lift.
 

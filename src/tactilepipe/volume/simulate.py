@@ -1,8 +1,10 @@
 """Simulated lifts of a water-filled container held by two PapillArray sensors (study 001).
 
-Physics (REFERENCE.md section 4), per 500 Hz sample:
-- Robotiq grip: the normal force per pad ramps to the force setting (with lift-to-lift
-  repeatability); it does not depend on the load, because the gripper is force-controlled.
+Physics, per 500 Hz sample:
+- Robotiq grip (``grip_regime``, see ``grasp.py``): in the default ``force`` regime the normal
+  force per pad ramps to the force setting (with lift-to-lift repeatability) and does not depend
+  on the load; ``position`` closes to a width (pads and container wall in series, stiffer with
+  less headspace air), ``retighten`` raises the grip while loaded pillars slip.
 - Normal load map: a rigid wall pressed into 9 linear-spring pillars of different heights
   (centre tallest), slightly tilted; the indentation is solved so the pillar forces sum to the grip.
 - Lift: minimum-jerk 10 cm lift, hold, place. The pads carry min(K·z, m(g + a)): the container
@@ -30,12 +32,13 @@ from tactilepipe import papillarray as pa
 from tactilepipe.atomic import write_text
 from tactilepipe.bagio import write_bag
 from tactilepipe.errors import InputError
-from tactilepipe.volume import viscoelastic
+from tactilepipe.volume import grasp, viscoelastic
 
 G = 9.81
 SESSION_EPOCH_S = 1_767_225_600  # 2026-01-01T00:00:00Z: simulated sessions start here
 POSE_TOPIC = "/tool_pose"
 POSE_BASE_Z_M = 0.12  # tool height when the container stands on the table
+CONTACT_N = 0.05      # a pillar pressing harder than this is "in contact" (the driver's flag)
 
 
 @dataclass(frozen=True)
@@ -76,6 +79,7 @@ def _smooth_step(t: np.ndarray, start: float, duration: float) -> np.ndarray:
 class Timeline:
     t: np.ndarray          # s since the recording started
     grip: np.ndarray       # normal force per pad, N
+    envelope: np.ndarray   # gripper closure: 0 open, 1 closed (the grip's ramps)
     z: np.ndarray          # tool lift above the table position, m
     acc: np.ndarray        # tool vertical acceleration, m/s^2
     phases: dict           # phase name -> (start, end) s
@@ -89,12 +93,13 @@ def lift_timeline(sim: dict, rate_hz: float, grip_force: float, lift_s: float) -
     t_open = t_place + lift_s + settle
     total = t_open + opening + post
     t = np.arange(int(round(total * rate_hz))) / rate_hz
-    grip = grip_force * (_smooth_step(t, pre, close) - _smooth_step(t, t_open, opening))
+    envelope = _smooth_step(t, pre, close) - _smooth_step(t, t_open, opening)
+    grip = grip_force * envelope
     z_up, a_up = minimum_jerk(t - t_lift, lift_s, sim["lift_height_m"])
     z_dn, a_dn = minimum_jerk(t - t_place, lift_s, sim["lift_height_m"])
     phases = {"close": (pre, pre + close), "lift": (t_lift, t_hold), "hold": (t_hold, t_place),
               "place": (t_place, t_place + lift_s), "open": (t_open, t_open + opening)}
-    return Timeline(t, grip, z_up - z_dn, a_up - a_dn, phases)
+    return Timeline(t, grip, envelope, z_up - z_dn, a_up - a_dn, phases)
 
 
 def pillar_offsets_mm(steps: list[float]) -> np.ndarray:
@@ -126,23 +131,26 @@ def normal_load_map(grip: np.ndarray, offsets: np.ndarray, tilt: np.ndarray, pit
     return np.where(grip[:, None] > 0, fz, 0.0)
 
 
-def tangential_forces(demand: np.ndarray, fz: np.ndarray, k_t: float, mu_s: float, mu_k: float
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Stick/slip pillar shear for one pad over time.
+class PadFriction:
+    """Stick/slip state of one pad's 9 pillars, advanced one sample at a time.
 
-    demand: (T, 2) shear (x, y) the pad must carry; fz: (T, 9) pillar normal forces.
-    Returns pillar shear (T, 9, 2), slipping flags (T, 9) and gross-slip flags (T,) (the whole pad
-    slides: it carries only the kinetic limit). Each step solves exactly which pillars stick: the
-    sticking ones share one pad displacement u, sliding ones pull with mu_k f_z along their stretch.
+    Each step solves exactly which pillars stick: the sticking ones share one pad displacement u,
+    sliding ones pull with mu_k f_z along their stretch. A regime whose grip reacts to slip
+    (``retighten``) needs the slip of sample k before it sets the grip of sample k + 1, so the
+    solve is a step, not a whole-lift function.
     """
-    n = len(demand)
-    anchor = np.zeros((9, 2))     # where each pillar's spring is unstretched (moves when it slides)
-    forces = np.zeros((n, 9, 2))
-    slipping = np.zeros((n, 9), bool)
-    gross = np.zeros(n, bool)
-    u = np.zeros(2)
-    for k in range(n):
-        contact = fz[k] > 0
+
+    def __init__(self, k_t: float, mu_s: float, mu_k: float):
+        self.k_t, self.mu_s, self.mu_k = k_t, mu_s, mu_k
+        self.anchor = np.zeros((9, 2))   # where each pillar's spring is unstretched (moves when it slides)
+        self.u = np.zeros(2)
+
+    def step(self, demand: np.ndarray, fz: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+        """Pillar shear (9, 2), slipping flags (9,) and gross slip for shear ``demand`` (2,) and
+        pillar normal forces ``fz`` (9,)."""
+        k_t, mu_s, mu_k, anchor = self.k_t, self.mu_s, self.mu_k, self.anchor
+        u = self.u
+        contact = fz > 0
         anchor[~contact] = u      # a pillar off the wall relaxes and re-sticks where it lands
         stick = contact.copy()
         slide_force = np.zeros((9, 2))
@@ -151,27 +159,46 @@ def tangential_forces(demand: np.ndarray, fz: np.ndarray, k_t: float, mu_s: floa
             pull = slide_force[contact & ~stick].sum(axis=0)
             if n_stick == 0:
                 break
-            u = (demand[k] - pull + k_t * anchor[stick].sum(axis=0)) / (k_t * n_stick)
+            u = (demand - pull + k_t * anchor[stick].sum(axis=0)) / (k_t * n_stick)
             f = k_t * (u - anchor)
             mag = np.linalg.norm(f, axis=1)
-            over = stick & (mag > mu_s * fz[k])
+            over = stick & (mag > mu_s * fz)
             if not over.any():
                 break
             # the most overloaded pillars start sliding at the kinetic limit along their stretch
-            slide_force[over] = (mu_k * fz[k][over] / mag[over])[:, None] * f[over]
+            slide_force[over] = (mu_k * fz[over] / mag[over])[:, None] * f[over]
             stick &= ~over
         f = np.where(stick[:, None], k_t * (u - anchor), slide_force)
         f[~contact] = 0.0
         sliding = contact & ~stick
+        gross = False
         if stick.sum() == 0 and contact.any():
-            cap = mu_k * fz[k][contact].sum()
-            want = np.linalg.norm(demand[k])
-            gross[k] = want > cap
-            direction = demand[k] / want if want > 0 else np.zeros(2)
-            f[contact] = (mu_k * fz[k][contact])[:, None] * direction
+            cap = mu_k * fz[contact].sum()
+            want = np.linalg.norm(demand)
+            gross = bool(want > cap)
+            direction = demand / want if want > 0 else np.zeros(2)
+            f[contact] = (mu_k * fz[contact])[:, None] * direction
         # a sliding pillar's anchor follows so that its spring holds exactly the kinetic force
         anchor[sliding] = u - f[sliding] / k_t
-        forces[k], slipping[k] = f, sliding
+        self.u = u
+        return f, sliding, gross
+
+
+def tangential_forces(demand: np.ndarray, fz: np.ndarray, k_t: float, mu_s: float, mu_k: float
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stick/slip pillar shear for one pad over time.
+
+    demand: (T, 2) shear (x, y) the pad must carry; fz: (T, 9) pillar normal forces.
+    Returns pillar shear (T, 9, 2), slipping flags (T, 9) and gross-slip flags (T,) (the whole pad
+    slides: it carries only the kinetic limit).
+    """
+    n = len(demand)
+    pad = PadFriction(k_t, mu_s, mu_k)
+    forces = np.zeros((n, 9, 2))
+    slipping = np.zeros((n, 9), bool)
+    gross = np.zeros(n, bool)
+    for k in range(n):
+        forces[k], slipping[k], gross[k] = pad.step(demand[k], fz[k])
     return forces, slipping, gross
 
 
@@ -189,13 +216,19 @@ def simulate_lift(lift: Lift, sim: dict, seed: int) -> dict:
     props = sensor_properties(seed, sim)
     rate = sim["rate_hz"]
     mass = (sim["container_mass_g"] + lift.volume_ml) / 1000.0      # water: 1 g per ml
-    grip_force = sim["grip_force_n"] * (1 + sim["grip_force_rel_std"] * rng.standard_normal())
+    k_n, k_t = sim["pillar_normal_stiffness_n_per_mm"], sim["pillar_tangential_stiffness_n_per_mm"]
+    offsets = pillar_offsets_mm(sim["pillar_height_steps_mm"])
+    repeat = rng.standard_normal()      # lift-to-lift repeatability of the grasp (force or width)
+    if sim["grip_regime"] == "position":
+        pos = sim["position"]
+        grip_force = grasp.position_grip_n(pos, lift.volume_ml, pos["squeeze_mm"] + pos["squeeze_std_mm"] * repeat,
+                                           offsets, k_n)
+    else:
+        grip_force = sim["grip_force_n"] * (1 + sim["grip_force_rel_std"] * repeat)
     lift_s = sim["lift_duration_s"] * (1 + 0.03 * rng.standard_normal())
     tl = lift_timeline(sim, rate, grip_force, lift_s)
     n = len(tl.t)
 
-    k_n, k_t = sim["pillar_normal_stiffness_n_per_mm"], sim["pillar_tangential_stiffness_n_per_mm"]
-    offsets = pillar_offsets_mm(sim["pillar_height_steps_mm"])
     grasp_tilt = np.deg2rad(sim["grasp_tilt_std_deg"]) * rng.standard_normal()
 
     # Load carried by the pads: the container leaves the table once the pad springs hold m(g + a).
@@ -204,20 +237,25 @@ def simulate_lift(lift: Lift, sim: dict, seed: int) -> dict:
     carried = np.where(tl.grip > 0, carried, 0.0)
     share = props["k_factor"] / props["k_factor"].sum()
 
-    force = np.zeros((n, 2, 9, 3))
-    slip = np.zeros((n, 2, 9), bool)
-    gross = np.zeros(n, bool)
-    for s in range(2):
-        tilt = np.tan(np.deg2rad(sim["contact_tilt_std_deg"]) * rng.standard_normal(2))
-        fz = normal_load_map(tl.grip, offsets, tilt, sim["pillar_pitch_mm"], k_n)
-        # y points down the pad (positive when the container pulls down); sensor 1 faces sensor 0,
-        # so its x axis is mirrored
-        direction = np.array([np.sin(grasp_tilt) * (1 if s == 0 else -1), np.cos(grasp_tilt)])
-        demand = (share[s] * carried)[:, None] * direction[None, :]
-        ft, slip[:, s], g = tangential_forces(demand, fz, k_t * props["k_factor"][s],
-                                              sim["friction_static"], sim["friction_kinetic"])
-        gross |= g
-        force[:, s, :, :2], force[:, s, :, 2] = ft, fz
+    tilts = [np.tan(np.deg2rad(sim["contact_tilt_std_deg"]) * rng.standard_normal(2)) for _ in range(2)]
+    # y points down the pad (positive when the container pulls down); sensor 1 faces sensor 0,
+    # so its x axis is mirrored
+    demands = [(share[s] * carried)[:, None] * np.array([np.sin(grasp_tilt) * (1 if s == 0 else -1),
+                                                         np.cos(grasp_tilt)])[None, :] for s in range(2)]
+    k_ts = [k_t * props["k_factor"][s] for s in range(2)]
+    if sim["grip_regime"] == "retighten":
+        force, slip, gross, grip = retightened_pads(tl, grip_force, tilts, demands, k_ts, offsets, sim)
+    else:
+        force = np.zeros((n, 2, 9, 3))
+        slip = np.zeros((n, 2, 9), bool)
+        gross = np.zeros(n, bool)
+        grip = tl.grip
+        for s in range(2):
+            fz = normal_load_map(tl.grip, offsets, tilts[s], sim["pillar_pitch_mm"], k_n)
+            ft, slip[:, s], g = tangential_forces(demands[s], fz, k_ts[s],
+                                                  sim["friction_static"], sim["friction_kinetic"])
+            gross |= g
+            force[:, s, :, :2], force[:, s, :, 2] = ft, fz
 
     # Measurement: viscoelastic creep of the pillars (the reading lags the load), bias residual,
     # thermal drift since the block's bias request, white noise, and the sensor's range.
@@ -225,20 +263,55 @@ def simulate_lift(lift: Lift, sim: dict, seed: int) -> dict:
     drift_inf = sim["drift_inf_n"] + sim["drift_per_kg_n"] * carried / G
     drift = drift_inf * (1 - np.exp(-t_since_bias / sim["drift_tau_s"]))
     measured = viscoelastic.integrate_params(force, 1.0 / rate, sim)
+    if sim["crosstalk_t_to_n"]:
+        measured = grasp.add_crosstalk(measured, sim["crosstalk_t_to_n"])
     measured += sim["bias_residual_std_n"] * rng.standard_normal((1, 2, 9, 3))
     measured[..., 2] += (drift / 9.0)[:, None, None]
     measured += sim["noise_std_n"] * rng.standard_normal(measured.shape)
     measured, saturated = saturate(measured, sim)
 
     stiffness = np.array([k_t, k_t, k_n])
-    in_contact = force[..., 2] > 0.05
+    in_contact = force[..., 2] > CONTACT_N
     pose_t = np.arange(0, tl.t[-1], 1.0 / sim["pose_rate_hz"])
     pose_z = POSE_BASE_Z_M + np.interp(pose_t, tl.t, tl.z) + 2e-5 * rng.standard_normal(len(pose_t))
     return {"t": tl.t, "force": measured.astype(np.float32), "disp": (measured / stiffness).astype(np.float32),
             "in_contact": in_contact, "slip": slip, "pose_t": pose_t, "pose_z": pose_z,
             "off_table": (carried >= mass * (G + tl.acc) - 1e-12) & (tl.z > 0), "gross_slip": gross,
-            "phases": tl.phases, "true_force": force, "saturated": saturated,
+            "phases": tl.phases, "true_force": force, "grip": grip, "saturated": saturated,
             "saturated_samples": int(saturated.any(axis=(1, 2, 3)).sum())}
+
+
+def retightened_pads(tl: Timeline, grip_force: float, tilts: list, demands: list, k_ts: list,
+                     offsets: np.ndarray, sim: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Both pads, sample by sample, under a grip raised while loaded pillars slip.
+
+    While the gripper is closed, a slip of any pillar in contact (either pad) seen ``latency_s``
+    earlier raises the grip by ``rate_n_per_s`` per second, up to ``max_grip_n``; the raise is kept
+    for the rest of the hold and opens with the gripper. Returns true forces (T, 2, 9, 3), slip
+    flags (T, 2, 9), gross slip (T,) and the grip per pad (T,)."""
+    rt, rate = sim["retighten"], sim["rate_hz"]
+    n = len(tl.t)
+    lag = int(round(rt["latency_s"] * rate))
+    pads = [PadFriction(k, sim["friction_static"], sim["friction_kinetic"]) for k in k_ts]
+    force = np.zeros((n, 2, 9, 3))
+    slip = np.zeros((n, 2, 9), bool)
+    gross = np.zeros(n, bool)
+    grip = np.zeros(n)
+    seen = np.zeros(n, bool)          # a loaded pillar slipped at this sample
+    extra, fz = 0.0, None
+    for k in range(n):
+        if tl.envelope[k] >= 1.0 and k >= lag and seen[k - lag]:
+            extra = min(extra + rt["rate_n_per_s"] / rate, max(0.0, rt["max_grip_n"] - grip_force))
+        grip[k] = tl.envelope[k] * (grip_force + extra)
+        if fz is None or grip[k] != grip[k - 1]:      # the load map only changes with the grip
+            fz = [normal_load_map(grip[k:k + 1], offsets, tilts[s], sim["pillar_pitch_mm"],
+                                  sim["pillar_normal_stiffness_n_per_mm"])[0] for s in range(2)]
+        for s in range(2):
+            ft, slip[k, s], g = pads[s].step(demands[s][k], fz[s])
+            gross[k] |= g
+            force[k, s, :, :2], force[k, s, :, 2] = ft, fz[s]
+        seen[k] = bool((slip[k] & (force[k, :, :, 2] > CONTACT_N)).any())
+    return force, slip, gross, grip
 
 
 def saturate(measured: np.ndarray, sim: dict) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,28 @@
+# Study 001 under each grasp regime of the simulator (params.yaml volume_regimes), next to the
+# paper's Table 1. Not part of the default target: `make regimes` or `snakemake --cores 2 volume_regimes`.
+
+REGIMES = "results/volume_regimes"
+
+
+rule volume_regimes:
+    input:
+        code=stage_code("cmd_volume_regimes"),
+    output:
+        table=f"{REGIMES}/table1_regimes.csv",
+        markdown=f"{REGIMES}/table1_regimes.md",
+        grip=f"{REGIMES}/fz_vs_volume.csv",
+        grip_markdown=f"{REGIMES}/fz_vs_volume.md",
+        bars=f"{REGIMES}/figures/r2_by_regime.png",
+        grip_figure=f"{REGIMES}/figures/fz_vs_volume.png",
+        metrics=f"{REGIMES}/metrics.json",
+        qc=[f"{REGIMES}/qc_{name}.csv" for name in P["volume_regimes"]["regimes"]],
+    params:
+        declared=stage_params("cmd_volume_regimes"),
+        out_dir=REGIMES,
+    threads: 2
+    resources:
+        **rule_resources("volume_regimes"),
+    log:
+        f"{LOGS}/volume_regimes.log",
+    shell:
+        "{CLI} volume-regimes {PARAMS_ARGS} --out-dir {params.out_dir:q} --jobs {threads} 2> {log:q}"
