@@ -42,6 +42,7 @@ START_NS = 1_700_000_000_000_000_000
 CAL = np.diag([8.0, 8.0, 20.0, 100.0, 100.0, 100.0])
 SYNC = {"max_gap_s": 0.2, "pair_rate_hz": 0, "reference": "first", "contact_n": 0.5, "normal_sign": 1}
 SIZE = 32                                           # ingest image size
+INGEST = load_params()["tool_ingest"]               # clock refinement as params.yaml sets it
 N_FRAMES, N_FORCE = 24, 40
 
 
@@ -138,13 +139,13 @@ class Ctx:
 
     # readers, each writing its output into self.out
     def native(self, trial: Path):
-        return lambda: ingest_trial(open_trial(trial, "native"), self.out / "s.parquet", SIZE)
+        return lambda: ingest_trial(open_trial(trial, "native"), self.out / "s.parquet", SIZE, INGEST)
 
     def public(self, trial: Path):
-        return lambda: ingest_trial(open_trial(trial, "public"), self.out / "s.parquet", SIZE)
+        return lambda: ingest_trial(open_trial(trial, "public"), self.out / "s.parquet", SIZE, INGEST)
 
     def ros(self, bag: Path):
-        return lambda: ingest_trial(open_trial(bag, "ros"), self.out / "s.parquet", SIZE)
+        return lambda: ingest_trial(open_trial(bag, "ros"), self.out / "s.parquet", SIZE, INGEST)
 
     def papillarray(self, bag: Path):
         return lambda: ingest_bag(bag, self.out / "s.parquet")
@@ -735,7 +736,7 @@ def test_garbled_serial_lines_are_dropped_and_counted_in_the_shard(tmp_path, goo
     lines.insert(40, "99999999999,512,512,512,512,512,512")   # beyond millis()' 32 bits
     lines.append("5999,51")                               # cut off when logging stopped
     write_serial(trial / "force.log", lines, end=b"")
-    info = ingest_trial(open_trial(trial, "native"), c.out / "s.parquet", SIZE)
+    info = ingest_trial(open_trial(trial, "native"), c.out / "s.parquet", SIZE, INGEST)
     drops = read_shard_info(c.out / "s.parquet")["drops"]
     assert drops == info["drops"] == {
         "serial: wrong column count": 2, "serial: garbage bytes": 2, "serial: non-numeric field": 2,
@@ -748,7 +749,7 @@ def test_public_frames_below_zero_newton_are_dropped_and_counted(tmp_path, goods
     trial = _pub(c)
     for i in (1, 4):
         (trial / "force" / f"force_data_{i:04d}.txt").write_text(f"{i},1000\n")      # -0.97 N
-    info = ingest_trial(open_trial(trial, "public"), c.out / "s.parquet", SIZE)
+    info = ingest_trial(open_trial(trial, "public"), c.out / "s.parquet", SIZE, INGEST)
     assert info["drops"] == {"public: below 0 N": 2}
     assert info["frames"] == {"digit_left": 4, "digit_right": 4}
     assert read_shard_info(c.out / "s.parquet")["drops"] == {"public: below 0 N": 2}

@@ -346,7 +346,7 @@ def test_saturated_nano17_samples_are_dropped_counted_and_shown(smoke_params, tm
     log = read_serial_log(trial / "force.log")
     assert log.saturated == at_rails.sum() and len(log.counts) == (~at_rails).sum()
     assert log.counts.min() > 0 and log.counts.max() < layout.ADC_COUNTS
-    info = ingest_trial(open_trial(trial, "native"), tmp_path / "s.parquet", 32)
+    info = ingest_trial(open_trial(trial, "native"), tmp_path / "s.parquet", 32, p["tool_ingest"])
     assert info["drops"] == read_shard_info(tmp_path / "s.parquet")["drops"] == {
         "serial: ADC saturated": int(at_rails.sum())}
     assert info["force_samples"] == (~at_rails).sum()

@@ -96,7 +96,7 @@ def cmd_ingest_tool(args) -> None:
     p = _params(args)
     ti = p["tool_ingest"]
     raw = open_trial(args.trial, args.format, ti["ros_topics"])
-    info = ingest_trial(raw, args.out, ti["image_size"], ti["max_offset_s"])
+    info = ingest_trial(raw, args.out, ti["image_size"], ti)
     print(json.dumps({k: info[k] for k in ("trial", "frames", "force_samples", "clock", "drops")}))
 
 
