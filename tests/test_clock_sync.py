@@ -144,3 +144,13 @@ def test_the_shard_keeps_the_score_curve_for_the_qc_figure(tmp_path):
     assert lags[0] == pytest.approx(-INGEST["max_offset_s"]) and lags[-1] == pytest.approx(INGEST["max_offset_s"])
     best = lags[int(np.argmax(curve["score"]))]
     assert best == pytest.approx(info["clock"]["refined_shift_s"], abs=2 * curve["step_s"])   # kept to 3 decimals
+
+
+def test_the_session_clock_figure_is_drawn_from_the_shards(tmp_path):
+    from tactilepipe.tool.clock_report import clock_figure
+    shards = []
+    for k in range(2):
+        shards.append(tmp_path / f"s{k}.parquet")
+        ingest_trial(make_raw(seed=k), shards[-1], SIZE, INGEST)
+    assert clock_figure(shards, tmp_path / "fig" / "clock_sync.png") == 2
+    assert (tmp_path / "fig" / "clock_sync.png").stat().st_size > 1000

@@ -115,7 +115,8 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
                 "t_ns": trial["t_ns"], "t_s": t_s, "fx": fx, "fy": fy, "fz": fz,
                 "normal": normal, "shear": shear}))
             qc.append({"trial": info["trial"], "tool": info["tool"], "frames": info["frames"], "pairs": m,
-                       "pair_every": trial["pair_every"], "drops": dict(trial["drops"]), "clock": info["clock"],
+                       "pair_every": trial["pair_every"], "drops": dict(trial["drops"]),
+                       "clock": {k: v for k, v in info["clock"].items() if k != "curve"},   # curve: in the shard
                        "force_min_n": float(label_mag.min()), "force_max_n": float(label_mag.max()),
                        "reference_frames": int(len(ref_idx)), "source": info["source"]})
             k += m
