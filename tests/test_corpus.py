@@ -653,6 +653,17 @@ LIFTS_CASES = {
     "non_numeric_volume": ("bag,volume_ml,set\na.bag,fifty,main\n", "volume_ml 'fifty' is not a number", "line 2"),
     "negative_volume": ("bag,volume_ml,set\na.bag,-5,main\n", "must be finite and >= 0", "line 2"),
     "bad_set": ("bag,volume_ml,set\na.bag,50,test\n", "set 'test' must be main or unseen", "line 2"),
+    "header_only": ("bag,volume_ml,set\n", "no lifts: the file holds only its header", None),
+    "bag_listed_twice": ("bag,volume_ml,set\na.bag,100,main\nb.bag,50,main\na.bag,100,main\n",
+                         r"bag a.bag is listed again \(first on line 2\)", "line 4"),
+    "bag_with_conflicting_volumes": ("bag,volume_ml,set\na.bag,100,main\n./a.bag,150,main\n",
+                                     r"bag a.bag is listed again \(first on line 2, with 100.0 ml, main\)", "line 3"),
+    "bag_in_a_sub_folder": ("bag,volume_ml,set\nx.bag,100,main\n./sub/x.bag,150,main\n",
+                            "must be a file name in the session folder", "line 3"),
+    "bag_outside_the_session": ("bag,volume_ml,set\n../x.bag,100,main\n", "must be a file name in the session folder",
+                                "line 2"),
+    "not_a_bag": ("bag,volume_ml,set\nx.mcap,100,main\n", "must be a ROS1 .bag file", "line 2"),
+    "row_too_short": ("bag,volume_ml,set\nx.bag,100\n", "too few fields", "line 2"),
 }
 for _name, (_text, _problem, _record) in LIFTS_CASES.items():
     @case(f"volume_lifts_csv/{_name}")
@@ -662,6 +673,15 @@ for _name, (_text, _problem, _record) in LIFTS_CASES.items():
         if text is not None:
             (session / "lifts.csv").write_text(text)
         return Case(lambda: read_session_labels(session), session / "lifts.csv", problem, record)
+
+
+def test_lifts_csv_with_a_byte_order_mark_and_spaces_reads(tmp_path):
+    session = tmp_path / "lab session 1"
+    session.mkdir()
+    (session / "lifts.csv").write_bytes("\ufeffbag,volume_ml,set\r\nlift 1.bag,100,main\r\n./b.bag,50,unseen\r\n"
+                                        .encode("utf-8"))
+    assert read_session_labels(session) == [{"bag": "lift 1.bag", "volume_ml": 100.0, "set": "main"},
+                                            {"bag": "b.bag", "volume_ml": 50.0, "set": "unseen"}]
 
 
 # params.yaml
