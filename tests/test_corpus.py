@@ -86,6 +86,7 @@ def make_public_session(root: Path) -> Path:
     frames = [digit_frame(i, 48, 64) for i in range(n)]
     pl.write_public_trial(session, "t0", frames, frames, [0.5, 3.0, 6.0, 9.0, 6.0, 3.0], "normal")
     pl.write_public_trial(session, "s0", frames, frames, np.full((n, 3), 1.0), "shear")
+    (session / "trials.csv").write_text("trial,tool,orientation_deg,insertion_mm\nt0,knife,5,10\ns0,knife,5,10\n")
     return session
 
 
@@ -606,6 +607,45 @@ def _(c):
     path = trial.parent.parent / "trials.csv"
     path.write_text("trial,tool,orientation_deg,insertion_mm\nt0,knife,ten,3\n")
     return Case(c.public(trial), path, "expected trial,tool,orientation_deg,insertion_mm", "line 2")
+
+
+TRIALS_CSV_CASES = {
+    "missing": (None, "missing: a public-layout session needs trials.csv", None),
+    "trial_without_a_row": ("trial,tool,orientation_deg,insertion_mm\ns0,knife,5,10\n",
+                            r"no tool for 1 of 1 public trials: data_normal/t0", None),
+    "empty_tool": ("trial,tool,orientation_deg,insertion_mm\nt0,,5,10\n", "must not be empty", "line 2"),
+    "trial_listed_twice": ("trial,tool,orientation_deg,insertion_mm\nt0,knife,5,10\nt0,spatula,5,10\n",
+                           "trial t0 is listed again", "line 3"),
+    "wrong_header": ("name,tool\nt0,knife\n", "header must hold trial,tool,orientation_deg,insertion_mm", "line 1"),
+}
+for _name, (_text, _problem, _record) in TRIALS_CSV_CASES.items():
+    @case(f"public_trials_csv/{_name}")
+    def _(c, text=_text, problem=_problem, record=_record):
+        trial = _pub(c)
+        path = trial.parent.parent / "trials.csv"
+        if text is None:
+            path.unlink()
+        else:
+            path.write_text(text)
+        return Case(c.public(trial), path, problem, record)
+
+
+@case("public_trials_csv/session_listing_names_every_trial_lacking_a_tool")
+def _(c):
+    from tactilepipe.tool.importers import list_trials
+    session = c.copy("public")
+    path = session / "trials.csv"
+    path.write_text("trial,tool,orientation_deg,insertion_mm\nother,knife,5,10\n")
+    return Case(lambda: list_trials(session), path, r"no tool for 2 of 2 public trials: data_normal/t0, data_shear/s0")
+
+
+def test_public_trial_takes_its_tool_from_trials_csv_with_bom_and_kind_prefix(tmp_path, goods):
+    c = Ctx(tmp_path, goods)
+    trial = _pub(c)
+    (trial.parent.parent / "trials.csv").write_bytes(
+        "\ufefftrial,tool,orientation_deg,insertion_mm\r\ndata_normal/t0,spatula,7,12\r\ns0,knife,5,10\r\n".encode())
+    raw = open_trial(trial, "public")
+    assert (raw.tool, raw.orientation_deg, raw.insertion_mm) == ("spatula", 7.0, 12.0)
 
 
 # Intermediate files a later stage reads: shards

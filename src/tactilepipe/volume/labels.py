@@ -13,18 +13,10 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 
+from tactilepipe.csvtext import read_text_table
 from tactilepipe.errors import InputError
 
 HEADER = ("bag", "volume_ml", "set")
-
-
-def read_text_table(path: Path, what: str) -> str:
-    """A CSV's text: UTF-8 with or without a byte-order mark (spreadsheets write one)."""
-    try:
-        return path.read_bytes().decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = path.read_bytes()[:exc.start].count(b"\n") + 1
-        raise InputError(path, f"not UTF-8 text (byte 0x{exc.object[exc.start]:02x}): {what}", f"line {line}") from None
 
 
 def _bag_name(path: Path, value: str, line: int) -> str:
