@@ -145,7 +145,7 @@ def _broken_copy(session, tmp_path, break_it):
     (lambda t: (t / "digit_left" / "frame_000005.png").unlink(), "files are missing"),
     (lambda t: (t / "digit_left" / "frame_000003.png").write_bytes(b"not a png"), "unreadable"),
     (lambda t: cv2.imwrite(str(t / "digit_right" / "frame_000002.png"), np.zeros((240, 320, 3), np.uint8)),
-     "expected 240x320"),
+     "the sensor's first frame is 240x320"),
     (lambda t: cv2.imwrite(str(t / "digit_right" / "frame_000002.png"), np.zeros((320, 240), np.uint8)),
      "grayscale image"),
     (lambda t: (t / "force.log").write_text("# start_host_ns=1\n100,1,1,1,1,1,1\n50,1,1,1,1,1,1\n"),

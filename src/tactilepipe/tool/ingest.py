@@ -58,8 +58,9 @@ def check_exposure(gray: np.ndarray, where: str, name: str) -> None:
 FROZEN_RUN = 3
 
 
-def _decode_sensor(frames, size: int, name: str) -> tuple[list[bytes], np.ndarray]:
-    """PNG bytes of every preprocessed frame and the frames themselves (n, size, size)."""
+def _decode_sensor(frames, size: int, name: str) -> tuple[list[bytes], np.ndarray, list[int]]:
+    """PNG bytes of every preprocessed frame, the frames themselves (n, size, size) and the
+    recorded frame size [width, height]."""
     pngs, grays = [], np.zeros((len(frames), size, size), np.uint8)
     first_shape = None
     for i in range(len(frames)):
@@ -73,7 +74,7 @@ def _decode_sensor(frames, size: int, name: str) -> tuple[list[bytes], np.ndarra
         if not ok:
             raise InputError(frames.source[i], f"{name}: cannot PNG-encode the preprocessed frame")
         pngs.append(buf.tobytes())
-    return pngs, grays
+    return pngs, grays, [int(first_shape[1]), int(first_shape[0])]
 
 
 def _refine_clock(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.ndarray, ingest: dict
@@ -157,7 +158,7 @@ def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, ingest: dict
         clock.update(record)
     _check_frozen(raw, grays, force_ns, force, ingest["clock"]["min_force_range_n"])
     rows_sensor, rows_t, rows_png = [], [], []
-    for name, (pngs, _) in decoded.items():
+    for name, (pngs, _, _) in decoded.items():
         rows_sensor += [name] * len(pngs)
         rows_t.append(raw.frames[name].host_ns.astype(np.int64))
         rows_png += pngs
@@ -174,6 +175,7 @@ def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, ingest: dict
     info = {"trial": raw.trial, "tool": raw.tool, "kind": raw.kind, "orientation_deg": raw.orientation_deg,
             "insertion_mm": raw.insertion_mm, "image_size": image_size, "clock": clock,
             "drops": raw.drops, "frames": {n: len(f) for n, f in raw.frames.items()}, "force_samples": n_force,
+            "frame_size": {n: d[2] for n, d in decoded.items()},   # [w, h] before the square resize
             "source": raw.source}
     table = table.replace_schema_metadata({b"tactilepipe": json.dumps(info).encode()})
     with atomic_path(shard) as tmp:
