@@ -298,6 +298,31 @@ def _(c):
     return Case(c.papillarray(bag), bag, "cannot decode SensorState", r"/hub_0/sensor_0 record 5")
 
 
+@case("ros1_papillarray/other_message_definition")
+def _(c):
+    """Recorded with another SensorState definition (no tus, float64 globals): named field by field,
+    before any message is decoded by the vendor's layout."""
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    store = get_typestore(Stores.ROS1_NOETIC)
+    other = pa.SENSOR_STATE_MSG.replace("int64 tus\n", "").replace("float32 gf", "float64 gf")
+    store.register({**get_types_from_msg(pa.PILLAR_STATE_MSG, pa.PILLAR_STATE),
+                    **get_types_from_msg(other, pa.SENSOR_STATE)})
+    from conftest import _sensor_stream
+    st = _sensor_stream(n=5, seed=3)
+    raws = pa.encode_sensor_states(st["stamp_ns"], st["tus"], st["disp"], st["force"], st["in_contact"],
+                                   st["slip_state"])
+    bag = c.tmp / "in" / "other.bag"
+    bag.parent.mkdir(parents=True, exist_ok=True)
+    with Writer(bag) as writer:
+        conn = writer.add_connection("/hub_0/sensor_0", pa.SENSOR_STATE, typestore=store)
+        for t, raw in zip(st["stamp_ns"], raws):
+            writer.write(conn, int(t), raw)
+    return Case(c.papillarray(bag), bag, r"topic /hub_0/sensor_0: the bag's definition of "
+                                         r"papillarray_ros_v2/msg/SensorState differs from the driver's: "
+                                         r"field tus missing; field gfX is float64, expected float32")
+
+
 @case("ros1_papillarray/missing_file")
 def _(c):
     bag = c.tmp / "in" / "nope.bag"

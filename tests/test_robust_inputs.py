@@ -67,3 +67,16 @@ def test_landscape_frames_are_noted_and_not_mixed_with_portrait_ones(native, pub
     ingest_trial(open_trial(native, "native"), tmp_path / "nat.parquet", SIZE, INGEST)     # 240 x 320
     with pytest.raises(InputError, match=r"frames are landscape, those of .* are portrait"):
         build_tool_dataset([tmp_path / "nat.parquet", tmp_path / "pub.parquet"], "normal", tmp_path / "mixed", SYNC)
+
+
+def test_numbers_yaml_1_1_reads_as_strings_are_numbers_where_the_schema_wants_one(tmp_path):
+    from tactilepipe.config import REPO_ROOT, load_params
+    from tactilepipe.errors import ConfigError
+    text = (REPO_ROOT / "params.yaml").read_text()
+    assert "  tol: 0.0001" in text
+    path = tmp_path / "params.yaml"
+    path.write_text(text.replace("  tol: 0.0001", "  tol: 1e-4"))
+    assert load_params(path)["mlp"]["tol"] == 1e-4
+    path.write_text(text.replace("  tol: 0.0001", "  tol: 1e-4x"))          # still not a number
+    with pytest.raises(ConfigError, match=r"'mlp.tol'"):
+        load_params(path)
