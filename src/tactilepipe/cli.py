@@ -158,7 +158,7 @@ def cmd_dataset(args) -> None:
     from tactilepipe.volume.dataset import build_dataset
     p = _params(args)
     lifts = _session_lifts(p, Path(args.raw_root), Path(args.shard_root))
-    data, qc = build_dataset(lifts, p["segment"])
+    data, qc = build_dataset(lifts, p["segment"], p["papillarray_axes"])
     write_parquet(args.out, data)
     write_text(args.qc, qc.to_csv(index=False))
 

@@ -110,6 +110,10 @@ def _check_consistency(p: dict, source: str) -> None:
     if p["mlp"]["grid"]["modality"] not in p["mlp"]["modalities"]:
         raise ConfigError(f"{source}: mlp.grid.modality '{p['mlp']['grid']['modality']}' is not one of "
                           f"mlp.modalities {sorted(p['mlp']['modalities'])}")
+    for sensor, axes in p["papillarray_axes"].items():
+        if sorted(v[1] for v in axes.values()) != ["x", "y", "z"]:
+            raise ConfigError(f"{source}: papillarray_axes.{sensor} must take each recorded axis x, y, z once "
+                              f"(got {axes})")
     if abs(sum(p["tool_split"]["fractions"]) - 1.0) > 1e-6:
         raise ConfigError(f"{source}: tool_split.fractions must sum to 1 (got {p['tool_split']['fractions']})")
     if p["simulate_volume"]["friction_kinetic"] > p["simulate_volume"]["friction_static"]:
