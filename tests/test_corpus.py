@@ -574,6 +574,37 @@ for _name, (_text, _problem, _record) in SERIAL_ERROR_CASES.items():
         return Case(c.native(trial), path, problem, record)
 
 
+# The native trial's force clock, refined against the images (tool/clock_sync.py)
+
+def _rewrite_frames(trial: Path, sensor: str, frame) -> None:
+    for i in range(N_FRAMES):
+        cv2.imwrite(str(_png(trial, sensor, i)), frame(i))
+
+
+@case("native_clock/frozen_camera")
+def _(c):
+    trial = _native(c)
+    _rewrite_frames(trial, "digit_right", lambda i: digit_frame(0))
+    return Case(c.native(trial), _png(trial, "digit_right", 0),
+                rf"digit_right: frames 0-{N_FRAMES - 1} of {N_FRAMES} are bit-identical .* the camera froze")
+
+
+@case("native_clock/flat_force_log")
+def _(c):
+    trial = _native(c)
+    write_serial(trial / "force.log", [ln.rsplit(",", 4)[0] + ",512,512,512,512" for ln in serial_lines()])
+    return Case(c.native(trial), trial, "the force log is flat")
+
+
+@case("native_clock/images_do_not_follow_the_force")
+def _(c):
+    trial = _native(c)
+    for seed, s in enumerate(("digit_left", "digit_right")):      # each camera shuffled its own way
+        order = np.random.default_rng(seed).permutation(N_FRAMES)
+        _rewrite_frames(trial, s, lambda i, order=order: digit_frame(int(order[i])))
+    return Case(c.native(trial), trial, "cannot align the force clock|on the edge of the search window")
+
+
 # The public dataset layout of study 000 -> public_layout + ingest
 
 def _pub(c: Ctx, trial: str = "t0", kind: str = "data_normal") -> Path:
@@ -866,6 +897,12 @@ def test_every_kind_of_bad_input_in_the_issue_is_in_the_corpus():
         "saturated image": r"saturated", "public layout missing files": r"public_layout/.*missing",
         "public layout mismatched files": r"public_layout/(index_used_twice|frame_size_differs)",
         "params wrong types": r"params_yaml/wrong_type", "params unknown keys": r"params_yaml/unknown",
+        "frozen camera": r"native_clock/frozen_camera", "flat force log": r"native_clock/flat_force_log",
+        "clock not found": r"native_clock/images_do_not_follow", "truncated JPEG": r"public_layout/frame_truncated_jpeg",
+        "duplicate lifts.csv rows": r"volume_lifts_csv/bag_listed_twice|bag_with_conflicting",
+        "header-only lifts.csv": r"volume_lifts_csv/header_only", "sub-folder bag": r"volume_lifts_csv/bag_in_a_sub",
+        "missing or incomplete trials.csv": r"public_trials_csv/(missing|trial_without_a_row)",
+        "other message definition": r"other_message_definition",
     }
     for kind, pattern in want.items():
         assert any(re.search(pattern, i) for i in ids), kind
