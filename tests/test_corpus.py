@@ -55,6 +55,11 @@ def digit_frame(i: int, h: int = FRAME_H, w: int = FRAME_W) -> np.ndarray:
     return np.clip(img, 0, 255).astype(np.uint8)
 
 
+def noisy(img: np.ndarray, seed: int = 0) -> np.ndarray:
+    """A frame with camera noise (JPEGs of noise-free synthetic frames decode differently when cut)."""
+    return np.clip(img + np.random.default_rng(seed).normal(0, 5, img.shape), 0, 255).astype(np.uint8)
+
+
 def serial_lines(n: int = N_FORCE) -> list[str]:
     return [f"{1000 + 67 * i},512,512,{512 + (30 if 10 <= i < 20 else 0)},512,512,512" for i in range(n)]
 
@@ -630,7 +635,9 @@ PUBLIC_CASES = {
                        lambda t: t / "force" / "force_data_0002.txt", "unreadable force file"),
     "frame_unreadable": (lambda t: (t / "tactile1" / "tactile_frame_0002.jpg").write_bytes(b"\xff\xd8\xff garbage"),
                          lambda t: t / "tactile1" / "tactile_frame_0002.jpg", "unreadable or missing image"),
-    "frame_truncated_jpeg": (lambda t: truncate(t / "tactile2" / "tactile_frame_0003.jpg", 0.3),
+    # a camera-noisy frame cut in half: OpenCV's imread decodes the rows present, the rest grey
+    "frame_truncated_jpeg": (lambda t: (cv2.imwrite(str(t / "tactile2" / "tactile_frame_0003.jpg"), noisy(digit_frame(3, 48, 64))),
+                                        truncate(t / "tactile2" / "tactile_frame_0003.jpg", 0.5)),
                              lambda t: t / "tactile2" / "tactile_frame_0003.jpg", "truncated JPEG"),
     "frame_truncated_png": (lambda t: (cv2.imwrite(str(t / "tactile1" / "tactile_frame_0004.png"), digit_frame(4, 48, 64)),
                                        (t / "tactile1" / "tactile_frame_0004.jpg").unlink(),
