@@ -19,6 +19,9 @@ SIZE = 32
 FPS, N_FRAMES = 30.0, 100
 PERIOD_S = 1 / FPS
 TRUE_SHIFT_S = 0.31          # the coarse force clock is this much early
+# contact as faint as on a DIGIT: at 16 N the mean change over the frame is ~2 grey levels, a
+# tenth of what dimming one frame by 20 % does
+BLOB_DN_PER_N = 1.0
 
 
 def force_curve(t):
@@ -36,7 +39,7 @@ def make_raw(glitch=None, seed: int = 0, force=force_curve) -> RawTrial:
         t = np.arange(N_FRAMES) / FPS + 0.002 * s
         imgs = []
         for ti in t:
-            blob = gain * 4 * force(ti) * np.exp(-((xx - 32) ** 2 + (yy - 24) ** 2) / 120.0)
+            blob = gain * BLOB_DN_PER_N * force(ti) * np.exp(-((xx - 32) ** 2 + (yy - 24) ** 2) / 120.0)
             img = base + blob[..., None] + rng.normal(0, 2.0, base.shape)
             imgs.append(np.clip(img, 0, 255).astype(np.uint8))
         stamps = list((t * 1e9).astype(np.int64))
@@ -154,3 +157,10 @@ def test_the_session_clock_figure_is_drawn_from_the_shards(tmp_path):
         ingest_trial(make_raw(seed=k), shards[-1], SIZE, INGEST)
     assert clock_figure(shards, tmp_path / "fig" / "clock_sync.png") == 2
     assert (tmp_path / "fig" / "clock_sync.png").stat().st_size > 1000
+
+
+def test_the_clock_figure_has_a_cli_stage(tmp_path):
+    from tactilepipe.cli import main
+    ingest_trial(make_raw(), tmp_path / "s0.parquet", SIZE, INGEST)
+    assert main(["tool-clock-figure", "--shards", str(tmp_path / "s0.parquet"), "--out", str(tmp_path / "c.png")]) == 0
+    assert (tmp_path / "c.png").exists()

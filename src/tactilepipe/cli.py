@@ -100,6 +100,12 @@ def cmd_ingest_tool(args) -> None:
     print(json.dumps({k: info[k] for k in ("trial", "frames", "force_samples", "clock", "drops")}))
 
 
+def cmd_tool_clock_figure(args) -> None:
+    from tactilepipe.tool.clock_report import clock_figure
+    n = clock_figure([Path(s) for s in args.shards], Path(args.out))
+    print(json.dumps({"figure": args.out, "trials_plotted": n}))
+
+
 def cmd_tool_dataset(args) -> None:
     from tactilepipe.tool.dataset import build_tool_dataset
     p = _params(args)
@@ -263,6 +269,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--format", choices=["native", "public", "ros"], required=True)
     s.add_argument("--out", required=True)
     s.set_defaults(func=cmd_ingest_tool)
+
+    s = sub.add_parser("tool-clock-figure", help="QC figure: each native trial's clock correlation against lag")
+    s.add_argument("--shards", nargs="+", required=True, help="a session's tool shards")
+    s.add_argument("--out", required=True, help="PNG to write")
+    s.set_defaults(func=cmd_tool_clock_figure)
 
     s = sub.add_parser("tool-dataset", parents=[common], help="sync frames and force, references -> arrays")
     s.add_argument("--kind", choices=["normal", "shear"], required=True)
