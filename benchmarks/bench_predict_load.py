@@ -57,7 +57,10 @@ def predict_rate(checkpoint: Path, trial: Path, override: dict | None, loaded: b
                "--checkpoint", str(checkpoint), "--trial", str(trial)]
         if override:
             cmd += ["--override", json.dumps(override)]
-        out = subprocess.run(cmd, capture_output=True, text=True, check=True, cwd=REPO).stdout
+        run = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
+        if run.returncode:
+            raise SystemExit(f"predict failed ({run.returncode}): {run.stderr.strip()[-2000:]}")
+        out = run.stdout
     finally:
         if load is not None:
             load.kill()
