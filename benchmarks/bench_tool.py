@@ -69,7 +69,7 @@ def main() -> None:
                                                    (args.size, args.size), interpolation=cv2.INTER_AREA)
                                         for f in pngs]) for _ in range(2))
         best_ours = min(_timed(lambda: [ingest_trial(read_native_trial(t), Path(tmp) / "shards" / f"{t.name}.parquet",
-                                                     args.size) for t in trials]) for _ in range(2))
+                                                     args.size, p["tool_ingest"]) for t in trials]) for _ in range(2))
         bare = row("bare OpenCV loop (imread + gray + resize)", best_bare, len(pngs), "frames/s")
         ours = row("tactilepipe ingest (+ clock sync, PNG encode, Parquet)", best_ours, len(pngs), "frames/s")
         print(f"ingest / bare = {ours / bare:.0%}  (target >= 70 %: {'met' if ours >= 0.7 * bare else 'NOT met'})")

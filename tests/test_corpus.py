@@ -36,12 +36,13 @@ from tactilepipe.tool.ingest import ingest_trial, read_shard_info
 from tactilepipe.tool.layout import FRAME_H, FRAME_W, TrialMeta, write_calibration
 from tactilepipe.drift.analyse import recording_reading
 from tactilepipe.volume.dataset import read_shard
-from tactilepipe.volume.simulate import read_session_labels
+from tactilepipe.volume.labels import read_session_labels
 
 START_NS = 1_700_000_000_000_000_000
 CAL = np.diag([8.0, 8.0, 20.0, 100.0, 100.0, 100.0])
 SYNC = {"max_gap_s": 0.2, "pair_rate_hz": 0, "reference": "first", "contact_n": 0.5, "normal_sign": 1}
 SIZE = 32                                           # ingest image size
+INGEST = load_params()["tool_ingest"]               # clock refinement as params.yaml sets it
 N_FRAMES, N_FORCE = 24, 40
 
 
@@ -52,6 +53,11 @@ def digit_frame(i: int, h: int = FRAME_H, w: int = FRAME_W) -> np.ndarray:
     blob = 40 * np.exp(-((xx - w / 2) ** 2 + (yy - h / 2) ** 2) / (30.0 + 20 * i))
     img = np.stack([90 + 40 * xx / w + blob, 110 + 30 * yy / h, 150 - blob], -1)
     return np.clip(img, 0, 255).astype(np.uint8)
+
+
+def noisy(img: np.ndarray, seed: int = 0) -> np.ndarray:
+    """A frame with camera noise (JPEGs of noise-free synthetic frames decode differently when cut)."""
+    return np.clip(img + np.random.default_rng(seed).normal(0, 5, img.shape), 0, 255).astype(np.uint8)
 
 
 def serial_lines(n: int = N_FORCE) -> list[str]:
@@ -85,6 +91,7 @@ def make_public_session(root: Path) -> Path:
     frames = [digit_frame(i, 48, 64) for i in range(n)]
     pl.write_public_trial(session, "t0", frames, frames, [0.5, 3.0, 6.0, 9.0, 6.0, 3.0], "normal")
     pl.write_public_trial(session, "s0", frames, frames, np.full((n, 3), 1.0), "shear")
+    (session / "trials.csv").write_text("trial,tool,orientation_deg,insertion_mm\nt0,knife,5,10\ns0,knife,5,10\n")
     return session
 
 
@@ -138,13 +145,13 @@ class Ctx:
 
     # readers, each writing its output into self.out
     def native(self, trial: Path):
-        return lambda: ingest_trial(open_trial(trial, "native"), self.out / "s.parquet", SIZE)
+        return lambda: ingest_trial(open_trial(trial, "native"), self.out / "s.parquet", SIZE, INGEST)
 
     def public(self, trial: Path):
-        return lambda: ingest_trial(open_trial(trial, "public"), self.out / "s.parquet", SIZE)
+        return lambda: ingest_trial(open_trial(trial, "public"), self.out / "s.parquet", SIZE, INGEST)
 
     def ros(self, bag: Path):
-        return lambda: ingest_trial(open_trial(bag, "ros"), self.out / "s.parquet", SIZE)
+        return lambda: ingest_trial(open_trial(bag, "ros"), self.out / "s.parquet", SIZE, INGEST)
 
     def papillarray(self, bag: Path):
         return lambda: ingest_bag(bag, self.out / "s.parquet")
@@ -296,6 +303,31 @@ def _(c):
     return Case(c.papillarray(bag), bag, "cannot decode SensorState", r"/hub_0/sensor_0 record 5")
 
 
+@case("ros1_papillarray/other_message_definition")
+def _(c):
+    """Recorded with another SensorState definition (no tus, float64 globals): named field by field,
+    before any message is decoded by the vendor's layout."""
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    store = get_typestore(Stores.ROS1_NOETIC)
+    other = pa.SENSOR_STATE_MSG.replace("int64 tus\n", "").replace("float32 gf", "float64 gf")
+    store.register({**get_types_from_msg(pa.PILLAR_STATE_MSG, pa.PILLAR_STATE),
+                    **get_types_from_msg(other, pa.SENSOR_STATE)})
+    from conftest import _sensor_stream
+    st = _sensor_stream(n=5, seed=3)
+    raws = pa.encode_sensor_states(st["stamp_ns"], st["tus"], st["disp"], st["force"], st["in_contact"],
+                                   st["slip_state"])
+    bag = c.tmp / "in" / "other.bag"
+    bag.parent.mkdir(parents=True, exist_ok=True)
+    with Writer(bag) as writer:
+        conn = writer.add_connection("/hub_0/sensor_0", pa.SENSOR_STATE, typestore=store)
+        for t, raw in zip(st["stamp_ns"], raws):
+            writer.write(conn, int(t), raw)
+    return Case(c.papillarray(bag), bag, r"topic /hub_0/sensor_0: the bag's definition of "
+                                         r"papillarray_ros_v2/msg/SensorState differs from the driver's: "
+                                         r"field tus missing; field gfX is float64, expected float32")
+
+
 @case("ros1_papillarray/missing_file")
 def _(c):
     bag = c.tmp / "in" / "nope.bag"
@@ -393,7 +425,10 @@ def _png(trial: Path, sensor: str = "digit_left", i: int = 3) -> Path:
 IMAGE_CASES = {
     "unreadable": (lambda p: p.write_bytes(b"\x89PNG\r\n\x1a\n garbage"), "unreadable or missing image"),
     "empty_file": (lambda p: p.write_bytes(b""), "unreadable or missing image"),
-    "wrong_size": (lambda p: cv2.imwrite(str(p), digit_frame(0, FRAME_W, FRAME_H)), "expected 240x320"),
+    "wrong_size": (lambda p: cv2.imwrite(str(p), digit_frame(0, FRAME_W, FRAME_H)),
+                   "frame is 320x240, the sensor's first frame is 240x320"),
+    "not_a_digit_resolution": (lambda p: cv2.imwrite(str(p), digit_frame(0, 100, 100)), "not a DIGIT resolution"),
+    "truncated_png": (lambda p: p.write_bytes(p.read_bytes()[:len(p.read_bytes()) // 2]), "truncated PNG"),
     "grayscale": (lambda p: cv2.imwrite(str(p), digit_frame(0)[..., 0]), "grayscale image"),
     "four_channels": (lambda p: cv2.imwrite(str(p), cv2.cvtColor(digit_frame(0), cv2.COLOR_BGR2BGRA)),
                       "expected 3-channel uint8 BGR, got 4 channels"),
@@ -544,6 +579,37 @@ for _name, (_text, _problem, _record) in SERIAL_ERROR_CASES.items():
         return Case(c.native(trial), path, problem, record)
 
 
+# The native trial's force clock, refined against the images (tool/clock_sync.py)
+
+def _rewrite_frames(trial: Path, sensor: str, frame) -> None:
+    for i in range(N_FRAMES):
+        cv2.imwrite(str(_png(trial, sensor, i)), frame(i))
+
+
+@case("native_clock/frozen_camera")
+def _(c):
+    trial = _native(c)
+    _rewrite_frames(trial, "digit_right", lambda i: digit_frame(0))
+    return Case(c.native(trial), _png(trial, "digit_right", 0),
+                rf"digit_right: frames 0-{N_FRAMES - 1} of {N_FRAMES} are bit-identical .* the camera froze")
+
+
+@case("native_clock/flat_force_log")
+def _(c):
+    trial = _native(c)
+    write_serial(trial / "force.log", [ln.rsplit(",", 4)[0] + ",512,512,512,512" for ln in serial_lines()])
+    return Case(c.native(trial), trial, "the force log is flat")
+
+
+@case("native_clock/images_do_not_follow_the_force")
+def _(c):
+    trial = _native(c)
+    for seed, s in enumerate(("digit_left", "digit_right")):      # each camera shuffled its own way
+        order = np.random.default_rng(seed).permutation(N_FRAMES)
+        _rewrite_frames(trial, s, lambda i, order=order: digit_frame(int(order[i])))
+    return Case(c.native(trial), trial, "cannot align the force clock|on the edge of the search window")
+
+
 # The public dataset layout of study 000 -> public_layout + ingest
 
 def _pub(c: Ctx, trial: str = "t0", kind: str = "data_normal") -> Path:
@@ -568,7 +634,18 @@ PUBLIC_CASES = {
     "force_not_utf8": (lambda t: (t / "force" / "force_data_0002.txt").write_bytes(b"\xff\xfe\x00"),
                        lambda t: t / "force" / "force_data_0002.txt", "unreadable force file"),
     "frame_unreadable": (lambda t: (t / "tactile1" / "tactile_frame_0002.jpg").write_bytes(b"\xff\xd8\xff garbage"),
-                         lambda t: t / "tactile1" / "tactile_frame_0002.jpg", "unreadable image"),
+                         lambda t: t / "tactile1" / "tactile_frame_0002.jpg", "unreadable or missing image"),
+    # a camera-noisy frame cut in half: OpenCV's imread decodes the rows present, the rest grey
+    "frame_truncated_jpeg": (lambda t: (cv2.imwrite(str(t / "tactile2" / "tactile_frame_0003.jpg"), noisy(digit_frame(3, 48, 64))),
+                                        truncate(t / "tactile2" / "tactile_frame_0003.jpg", 0.5)),
+                             lambda t: t / "tactile2" / "tactile_frame_0003.jpg", "truncated JPEG"),
+    "frame_truncated_png": (lambda t: (cv2.imwrite(str(t / "tactile1" / "tactile_frame_0004.png"), digit_frame(4, 48, 64)),
+                                       (t / "tactile1" / "tactile_frame_0004.jpg").unlink(),
+                                       truncate(t / "tactile1" / "tactile_frame_0004.png", 0.5)),
+                            lambda t: t / "tactile1" / "tactile_frame_0004.png", "truncated PNG"),
+    "jpg_and_png_of_one_index": (lambda t: cv2.imwrite(str(t / "tactile1" / "tactile_frame_0001.png"),
+                                                       digit_frame(1, 48, 64)),
+                                 lambda t: t / "tactile1", "index 1 also used by"),
     "frame_size_differs": (lambda t: cv2.imwrite(str(t / "tactile2" / "tactile_frame_0004.jpg"), digit_frame(4, 40, 64)),
                            lambda t: t / "tactile2" / "tactile_frame_0004.jpg", "differs from the trial's first frame"),
     "all_black_frame": (lambda t: cv2.imwrite(str(t / "tactile1" / "tactile_frame_0003.jpg"),
@@ -605,6 +682,45 @@ def _(c):
     path = trial.parent.parent / "trials.csv"
     path.write_text("trial,tool,orientation_deg,insertion_mm\nt0,knife,ten,3\n")
     return Case(c.public(trial), path, "expected trial,tool,orientation_deg,insertion_mm", "line 2")
+
+
+TRIALS_CSV_CASES = {
+    "missing": (None, "missing: a public-layout session needs trials.csv", None),
+    "trial_without_a_row": ("trial,tool,orientation_deg,insertion_mm\ns0,knife,5,10\n",
+                            r"no tool for 1 of 1 public trials: data_normal/t0", None),
+    "empty_tool": ("trial,tool,orientation_deg,insertion_mm\nt0,,5,10\n", "must not be empty", "line 2"),
+    "trial_listed_twice": ("trial,tool,orientation_deg,insertion_mm\nt0,knife,5,10\nt0,spatula,5,10\n",
+                           "trial t0 is listed again", "line 3"),
+    "wrong_header": ("name,tool\nt0,knife\n", "header must hold trial,tool,orientation_deg,insertion_mm", "line 1"),
+}
+for _name, (_text, _problem, _record) in TRIALS_CSV_CASES.items():
+    @case(f"public_trials_csv/{_name}")
+    def _(c, text=_text, problem=_problem, record=_record):
+        trial = _pub(c)
+        path = trial.parent.parent / "trials.csv"
+        if text is None:
+            path.unlink()
+        else:
+            path.write_text(text)
+        return Case(c.public(trial), path, problem, record)
+
+
+@case("public_trials_csv/session_listing_names_every_trial_lacking_a_tool")
+def _(c):
+    from tactilepipe.tool.importers import list_trials
+    session = c.copy("public")
+    path = session / "trials.csv"
+    path.write_text("trial,tool,orientation_deg,insertion_mm\nother,knife,5,10\n")
+    return Case(lambda: list_trials(session), path, r"no tool for 2 of 2 public trials: data_normal/t0, data_shear/s0")
+
+
+def test_public_trial_takes_its_tool_from_trials_csv_with_bom_and_kind_prefix(tmp_path, goods):
+    c = Ctx(tmp_path, goods)
+    trial = _pub(c)
+    (trial.parent.parent / "trials.csv").write_bytes(
+        "\ufefftrial,tool,orientation_deg,insertion_mm\r\ndata_normal/t0,spatula,7,12\r\ns0,knife,5,10\r\n".encode())
+    raw = open_trial(trial, "public")
+    assert (raw.tool, raw.orientation_deg, raw.insertion_mm) == ("spatula", 7.0, 12.0)
 
 
 # Intermediate files a later stage reads: shards
@@ -652,6 +768,17 @@ LIFTS_CASES = {
     "non_numeric_volume": ("bag,volume_ml,set\na.bag,fifty,main\n", "volume_ml 'fifty' is not a number", "line 2"),
     "negative_volume": ("bag,volume_ml,set\na.bag,-5,main\n", "must be finite and >= 0", "line 2"),
     "bad_set": ("bag,volume_ml,set\na.bag,50,test\n", "set 'test' must be main or unseen", "line 2"),
+    "header_only": ("bag,volume_ml,set\n", "no lifts: the file holds only its header", None),
+    "bag_listed_twice": ("bag,volume_ml,set\na.bag,100,main\nb.bag,50,main\na.bag,100,main\n",
+                         r"bag a.bag is listed again \(first on line 2\)", "line 4"),
+    "bag_with_conflicting_volumes": ("bag,volume_ml,set\na.bag,100,main\n./a.bag,150,main\n",
+                                     r"bag a.bag is listed again \(first on line 2, with 100.0 ml, main\)", "line 3"),
+    "bag_in_a_sub_folder": ("bag,volume_ml,set\nx.bag,100,main\n./sub/x.bag,150,main\n",
+                            "must be a file name in the session folder", "line 3"),
+    "bag_outside_the_session": ("bag,volume_ml,set\n../x.bag,100,main\n", "must be a file name in the session folder",
+                                "line 2"),
+    "not_a_bag": ("bag,volume_ml,set\nx.mcap,100,main\n", "must be a ROS1 .bag file", "line 2"),
+    "row_too_short": ("bag,volume_ml,set\nx.bag,100\n", "too few fields", "line 2"),
 }
 for _name, (_text, _problem, _record) in LIFTS_CASES.items():
     @case(f"volume_lifts_csv/{_name}")
@@ -661,6 +788,15 @@ for _name, (_text, _problem, _record) in LIFTS_CASES.items():
         if text is not None:
             (session / "lifts.csv").write_text(text)
         return Case(lambda: read_session_labels(session), session / "lifts.csv", problem, record)
+
+
+def test_lifts_csv_with_a_byte_order_mark_and_spaces_reads(tmp_path):
+    session = tmp_path / "lab session 1"
+    session.mkdir()
+    (session / "lifts.csv").write_bytes("\ufeffbag,volume_ml,set\r\nlift 1.bag,100,main\r\n./b.bag,50,unseen\r\n"
+                                        .encode("utf-8"))
+    assert read_session_labels(session) == [{"bag": "lift 1.bag", "volume_ml": 100.0, "set": "main"},
+                                            {"bag": "b.bag", "volume_ml": 50.0, "set": "unseen"}]
 
 
 # params.yaml
@@ -735,7 +871,7 @@ def test_garbled_serial_lines_are_dropped_and_counted_in_the_shard(tmp_path, goo
     lines.insert(40, "99999999999,512,512,512,512,512,512")   # beyond millis()' 32 bits
     lines.append("5999,51")                               # cut off when logging stopped
     write_serial(trial / "force.log", lines, end=b"")
-    info = ingest_trial(open_trial(trial, "native"), c.out / "s.parquet", SIZE)
+    info = ingest_trial(open_trial(trial, "native"), c.out / "s.parquet", SIZE, INGEST)
     drops = read_shard_info(c.out / "s.parquet")["drops"]
     assert drops == info["drops"] == {
         "serial: wrong column count": 2, "serial: garbage bytes": 2, "serial: non-numeric field": 2,
@@ -748,7 +884,7 @@ def test_public_frames_below_zero_newton_are_dropped_and_counted(tmp_path, goods
     trial = _pub(c)
     for i in (1, 4):
         (trial / "force" / f"force_data_{i:04d}.txt").write_text(f"{i},1000\n")      # -0.97 N
-    info = ingest_trial(open_trial(trial, "public"), c.out / "s.parquet", SIZE)
+    info = ingest_trial(open_trial(trial, "public"), c.out / "s.parquet", SIZE, INGEST)
     assert info["drops"] == {"public: below 0 N": 2}
     assert info["frames"] == {"digit_left": 4, "digit_right": 4}
     assert read_shard_info(c.out / "s.parquet")["drops"] == {"public: below 0 N": 2}
@@ -768,6 +904,12 @@ def test_every_kind_of_bad_input_in_the_issue_is_in_the_corpus():
         "saturated image": r"saturated", "public layout missing files": r"public_layout/.*missing",
         "public layout mismatched files": r"public_layout/(index_used_twice|frame_size_differs)",
         "params wrong types": r"params_yaml/wrong_type", "params unknown keys": r"params_yaml/unknown",
+        "frozen camera": r"native_clock/frozen_camera", "flat force log": r"native_clock/flat_force_log",
+        "clock not found": r"native_clock/images_do_not_follow", "truncated JPEG": r"public_layout/frame_truncated_jpeg",
+        "duplicate lifts.csv rows": r"volume_lifts_csv/bag_listed_twice|bag_with_conflicting",
+        "header-only lifts.csv": r"volume_lifts_csv/header_only", "sub-folder bag": r"volume_lifts_csv/bag_in_a_sub",
+        "missing or incomplete trials.csv": r"public_trials_csv/(missing|trial_without_a_row)",
+        "other message definition": r"other_message_definition",
     }
     for kind, pattern in want.items():
         assert any(re.search(pattern, i) for i in ids), kind

@@ -244,7 +244,7 @@ def test_zero_force_lift_is_refused_by_force_segmentation(quiet, smoke_params, t
     lifts = pd.DataFrame([{"lift": "s/empty", "session": "s", "volume_ml": 100.0, "set": "main",
                            "shard": str(tmp_path / "empty.parquet")}])
     with pytest.raises(InputError, match="never leaves the table"):
-        dataset.build_dataset(lifts, {**smoke_params["segment"], "method": "force"})
+        dataset.build_dataset(lifts, {**smoke_params["segment"], "method": "force"}, smoke_params["papillarray_axes"])
 
 
 def test_zero_force_lift_is_not_silently_kept_by_pose_segmentation(smoke_params, tmp_path):
@@ -256,7 +256,7 @@ def test_zero_force_lift_is_not_silently_kept_by_pose_segmentation(smoke_params,
     lifts = pd.DataFrame([{"lift": "s/empty", "session": "s", "volume_ml": 100.0, "set": "main",
                            "shard": str(tmp_path / "empty.parquet")}])
     try:
-        data, qc = dataset.build_dataset(lifts, smoke_params["segment"])
+        data, qc = dataset.build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"])
     except InputError:
         return                                            # refused with a message: fine
     assert "dropped" in qc.columns and qc["dropped"].sum() == 1
@@ -346,7 +346,7 @@ def test_saturated_nano17_samples_are_dropped_counted_and_shown(smoke_params, tm
     log = read_serial_log(trial / "force.log")
     assert log.saturated == at_rails.sum() and len(log.counts) == (~at_rails).sum()
     assert log.counts.min() > 0 and log.counts.max() < layout.ADC_COUNTS
-    info = ingest_trial(open_trial(trial, "native"), tmp_path / "s.parquet", 32)
+    info = ingest_trial(open_trial(trial, "native"), tmp_path / "s.parquet", 32, p["tool_ingest"])
     assert info["drops"] == read_shard_info(tmp_path / "s.parquet")["drops"] == {
         "serial: ADC saturated": int(at_rails.sum())}
     assert info["force_samples"] == (~at_rails).sum()

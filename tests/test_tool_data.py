@@ -9,7 +9,8 @@ import pytest
 from tactilepipe.errors import InputError
 from tactilepipe.tool.serial_log import read_serial_log
 from tactilepipe.tool.splits import make_split, thin_training
-from tactilepipe.tool.sync import calibrate, estimate_offset, interpolate_at, pair_frames
+from tactilepipe.tool.clock_sync import fit_offset
+from tactilepipe.tool.sync import calibrate, interpolate_at, pair_frames
 
 
 def write_log(path, lines, header="# start_host_ns=1000000000", newline_at_end=True):
@@ -86,9 +87,9 @@ def test_offset_is_recovered_from_tactile_and_force_signals(true_offset):
     tactile = presses(frame_t) * 1.7 + rng.normal(0, 0.3, len(frame_t))
     force_t = np.arange(0, 20, 1 / 15) + rng.normal(0, 0.003, 300)       # 15 Hz with jitter
     force = presses(force_t) + rng.normal(0, 0.05, len(force_t))
-    shift, score = estimate_offset(frame_t, tactile, force_t - true_offset, force, search_s=1.0)
-    assert shift == pytest.approx(true_offset, abs=0.01)
-    assert score > 0.9
+    fit = fit_offset({"digit_left": (frame_t, tactile)}, force_t - true_offset, force, search_s=1.0)
+    assert fit.shift_s == pytest.approx(true_offset, abs=0.01)
+    assert fit.score > 0.9 and not fit.on_edge
 
 
 def test_interpolation_drops_frames_across_force_gaps():

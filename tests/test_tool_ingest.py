@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
+from tactilepipe.config import load_params
 from tactilepipe.errors import InputError
 from tactilepipe.tool.dataset import build_tool_dataset
 from tactilepipe.tool.ingest import ingest_trial, read_shard_info
@@ -19,6 +20,7 @@ from tactilepipe.tool.native_import import read_native_trial
 
 CAL = np.diag([8.0, 8.0, 20.0, 100.0, 100.0, 100.0])   # N/V: 5/1023 V per count -> ~0.1 N per Fz count
 START_NS = 1_700_000_000_000_000_000
+INGEST = load_params()["tool_ingest"]
 SYNC = {"max_gap_s": 0.2, "pair_rate_hz": 0, "reference": "first", "contact_n": 0.5, "normal_sign": 1}  # this rig reads +Fz
 
 
@@ -43,7 +45,9 @@ def make_trial(session: Path, name: str, offset_s: float, kind: str = "normal", 
             lines.append(f"{i},{START_NS + int(ti * 1e9) + (3_000_000 if s == 'digit_right' else 0)}")
         (d / "frames.csv").write_text("\n".join(lines) + "\n")
     # the Arduino clock starts when the port opens; the host header is off by offset_s
-    ft = np.arange(0.0, seconds, 1 / 15)
+    # the port opens before the cameras start and closes after them, as on the rig: every frame
+    # has force samples on both sides once the clocks are aligned
+    ft = np.arange(-0.5, seconds + 0.5, 1 / 15)
     volts_z = force_curve(ft) / CAL[2, 2]
     counts = np.full((len(ft), 6), 512)
     counts[:, 2] = np.round(512 + volts_z * 1023 / 5).astype(int)
@@ -76,7 +80,7 @@ def test_native_trial_reads_frames_and_calibrated_force(session):
 
 @pytest.mark.parametrize("trial, offset", [("t00", 0.25), ("t01", -0.15)])
 def test_ingest_finds_the_clock_offset(session, tmp_path, trial, offset):
-    info = ingest_trial(read_native_trial(session / trial), tmp_path / "s.parquet", image_size=32)
+    info = ingest_trial(read_native_trial(session / trial), tmp_path / "s.parquet", image_size=32, ingest=INGEST)
     # the coarse force time is off by -offset (Arduino ahead); refinement must undo it
     assert info["clock"]["refined_shift_s"] == pytest.approx(-offset, abs=0.02)
     assert read_shard_info(tmp_path / "s.parquet")["frames"] == {"digit_left": 210, "digit_right": 210}
@@ -85,7 +89,7 @@ def test_ingest_finds_the_clock_offset(session, tmp_path, trial, offset):
 def test_dataset_pairs_frames_with_synced_forces(session, tmp_path):
     shards = []
     for trial in ("t00", "t01"):
-        ingest_trial(read_native_trial(session / trial), tmp_path / f"{trial}.parquet", image_size=32)
+        ingest_trial(read_native_trial(session / trial), tmp_path / f"{trial}.parquet", image_size=32, ingest=INGEST)
         shards.append(tmp_path / f"{trial}.parquet")
     build_tool_dataset(shards, "normal", tmp_path / "data", SYNC)
     data = ToolFrames(tmp_path / "data", "fz")
@@ -101,7 +105,7 @@ def test_dataset_pairs_frames_with_synced_forces(session, tmp_path):
 
 
 def test_pairs_are_thinned_to_the_pair_rate_without_counting_drops(session, tmp_path):
-    ingest_trial(read_native_trial(session / "t00"), tmp_path / "t00.parquet", image_size=32)
+    ingest_trial(read_native_trial(session / "t00"), tmp_path / "t00.parquet", image_size=32, ingest=INGEST)
     for rate, out in ((0, "every"), (15, "at15")):
         build_tool_dataset([tmp_path / "t00.parquet"], "normal", tmp_path / out, {**SYNC, "pair_rate_hz": rate})
     every, at15 = ToolFrames(tmp_path / "every", "fz"), ToolFrames(tmp_path / "at15", "fz")
@@ -121,7 +125,7 @@ def test_force_gaps_drop_frames_and_are_counted(session, tmp_path):
     shutil.copy(session / "nano17.cal", tmp_path / "lab-1")
     lines = (trial / "force.log").read_text().splitlines()
     (trial / "force.log").write_text("\n".join(lines[:40] + lines[55:]) + "\n")   # 1 s of serial missing
-    ingest_trial(read_native_trial(trial), tmp_path / "g.parquet", image_size=32)
+    ingest_trial(read_native_trial(trial), tmp_path / "g.parquet", image_size=32, ingest=INGEST)
     build_tool_dataset([tmp_path / "g.parquet"], "normal", tmp_path / "data", SYNC)
     qc = json.loads((tmp_path / "data" / "qc.json").read_text())
     dropped = qc["trials"][0]["drops"]["force gap"]
@@ -141,7 +145,7 @@ def _broken_copy(session, tmp_path, break_it):
     (lambda t: (t / "digit_left" / "frame_000005.png").unlink(), "files are missing"),
     (lambda t: (t / "digit_left" / "frame_000003.png").write_bytes(b"not a png"), "unreadable"),
     (lambda t: cv2.imwrite(str(t / "digit_right" / "frame_000002.png"), np.zeros((240, 320, 3), np.uint8)),
-     "expected 240x320"),
+     "the sensor's first frame is 240x320"),
     (lambda t: cv2.imwrite(str(t / "digit_right" / "frame_000002.png"), np.zeros((320, 240), np.uint8)),
      "grayscale image"),
     (lambda t: (t / "force.log").write_text("# start_host_ns=1\n100,1,1,1,1,1,1\n50,1,1,1,1,1,1\n"),
@@ -155,7 +159,7 @@ def test_bad_trials_raise_clear_errors(session, tmp_path, break_it, needle):
     trial = _broken_copy(session, tmp_path, break_it)
     with pytest.raises(InputError) as err:
         raw = read_native_trial(trial)
-        ingest_trial(raw, tmp_path / "out.parquet", image_size=32)
+        ingest_trial(raw, tmp_path / "out.parquet", image_size=32, ingest=INGEST)
     assert needle in str(err.value)
     assert "lab-1" in str(err.value)                    # names the file
     assert not (tmp_path / "out.parquet").exists()

@@ -35,7 +35,7 @@ def test_synced_labels_match_the_force_at_exposure(native_session, params, tmp_p
     for name, path, fmt in list_trials(session):
         assert fmt == "native"
         shard = tmp_path / f"{name}.parquet"
-        ingest_trial(open_trial(path, fmt), shard, 32, params["tool_ingest"]["max_offset_s"])
+        ingest_trial(open_trial(path, fmt), shard, 32, params["tool_ingest"])
         shards.append(shard)
     build_tool_dataset(shards, "normal", tmp_path / "data", params["tool_sync"])
     data = ToolFrames(tmp_path / "data", "normal")
@@ -63,7 +63,7 @@ def test_public_layout_runs_through_the_same_ingest(params, tmp_path):
     for name, path, fmt in trials:
         raw = open_trial(path, fmt)
         shard = tmp_path / f"{name}.parquet"
-        ingest_trial(raw, shard, 32)
+        ingest_trial(raw, shard, 32, params["tool_ingest"])
         shards.append((shard, raw.kind))
     kinds = {k for _, k in shards}
     for kind in kinds:
@@ -89,6 +89,6 @@ def test_ros_bags_run_through_the_same_ingest(native_session, params, tmp_path, 
     trials = list_trials(tmp_path)
     ros = [t for t in trials if t[2] == "ros"]
     assert len(ros) == 1
-    info = ingest_trial(open_trial(ros[0][1], "ros"), tmp_path / "shard.parquet", 32)
+    info = ingest_trial(open_trial(ros[0][1], "ros"), tmp_path / "shard.parquet", 32, params["tool_ingest"])
     assert info["frames"] == {"digit_left": n, "digit_right": n}
     assert info["clock"]["method"] == "ros_header_stamps"

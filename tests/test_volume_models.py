@@ -118,7 +118,7 @@ def test_lift_that_never_leaves_the_table(tmp_path, smoke_params):
     assert str(shard) in str(err.value)
     lifts = pd.DataFrame([{"lift": "s/x", "session": "s", "volume_ml": 300.0, "set": "main", "shard": str(shard)}])
     with pytest.raises(InputError, match="never leaves the table"):
-        build_dataset(lifts, smoke_params["segment"])
+        build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"])
 
 
 def test_lift_without_load_never_leaves_the_table_by_force(tmp_path, smoke_params):
@@ -145,7 +145,7 @@ def test_recording_without_pose(tmp_path, smoke_params):
 def test_build_dataset_keeps_the_off_table_samples(sim_lifts, smoke_params):
     lifts = pd.DataFrame([{"lift": f"sim/{it['lift'].name}", "session": "sim", "volume_ml": it["lift"].volume_ml,
                            "set": "main", "shard": str(it["shard"])} for it in sim_lifts])
-    data, qc = build_dataset(lifts, smoke_params["segment"])
+    data, qc = build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"])
     assert list(data.columns) == ["lift", "session", "volume_ml", "set", "t", "fx0", "fy0", "fz0", "fx1", "fy1", "fz1"]
     assert list(qc["lift"]) == list(lifts["lift"])
     assert (qc["segment_method"] == "pose").all()

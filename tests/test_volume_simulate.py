@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tactilepipe.volume.labels import read_session_labels
 from tactilepipe.errors import InputError
 from tactilepipe.volume import simulate as vsim
 
@@ -314,7 +315,7 @@ def test_thermal_drift_grows_with_time_since_bias(quiet_sim):
 def test_session_labels_round_trip(tmp_path, vsim_params):
     plan = vsim.session_plan(vsim_params)
     vsim.write_session_labels(tmp_path, plan)
-    rows = vsim.read_session_labels(tmp_path)
+    rows = read_session_labels(tmp_path)
     assert rows == [{"bag": f"{l.name}.bag", "volume_ml": l.volume_ml, "set": l.kind} for l in plan]
 
 
@@ -329,10 +330,10 @@ def test_session_labels_round_trip(tmp_path, vsim_params):
 def test_bad_session_labels_name_the_file_and_line(tmp_path, text, problem):
     (tmp_path / "lifts.csv").write_text(text)
     with pytest.raises(InputError, match=problem) as err:
-        vsim.read_session_labels(tmp_path)
+        read_session_labels(tmp_path)
     assert str(tmp_path / "lifts.csv") in str(err.value)
 
 
 def test_missing_session_labels(tmp_path):
     with pytest.raises(InputError, match="lifts.csv.*missing"):
-        vsim.read_session_labels(tmp_path)
+        read_session_labels(tmp_path)

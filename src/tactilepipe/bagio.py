@@ -26,6 +26,52 @@ def write_bag(path: str | Path, topics: dict[str, tuple[str, list[int], list[byt
                 writer.write(conn, stamp, raw)
 
 
+def _fields(msgdef: str) -> dict[str, dict[str, str]]:
+    """{section: {field: type}} of a ROS1 message definition (the main message is section "",
+    each embedded type its "MSG: pkg/Type" name); comments and constants left out."""
+    out: dict[str, dict[str, str]] = {"": {}}
+    section = ""
+    for line in msgdef.splitlines():
+        line = line.split("#", 1)[0].strip()
+        if not line or set(line) == {"="}:
+            continue
+        if line.startswith("MSG:"):
+            section = line[4:].strip().split("/")[-1]
+            out[section] = {}
+            continue
+        parts = line.split()
+        if len(parts) >= 2 and "=" not in line:
+            out[section][parts[1]] = parts[0].split("/")[-1]
+    return out
+
+
+def definition_differences(found: str, expected: str) -> list[str]:
+    """How a bag's message definition differs from the expected one, field by field."""
+    have, want = _fields(found), _fields(expected)
+    diffs = []
+    for section, fields in want.items():
+        where = f"{section}." if section else ""
+        got = have.get(section)
+        if got is None:
+            diffs.append(f"type {section} missing")
+            continue
+        diffs += [f"field {where}{f} missing" for f in fields if f not in got]
+        diffs += [f"field {where}{f} is {got[f]}, expected {t}" for f, t in fields.items() if f in got and got[f] != t]
+        diffs += [f"unexpected field {where}{f}" for f in got if f not in fields]
+    return diffs
+
+
+def _check_definition(path: Path, conn, store) -> None:
+    expected, digest = store.generate_msgdef(conn.msgtype)
+    if conn.digest == digest:
+        return
+    diffs = definition_differences(conn.msgdef.data if hasattr(conn.msgdef, "data") else conn.msgdef, expected)
+    if diffs:
+        shown = "; ".join(diffs[:6]) + (f"; {len(diffs) - 6} more" if len(diffs) > 6 else "")
+        raise InputError(path, f"topic {conn.topic}: the bag's definition of {conn.msgtype} differs from the "
+                               f"driver's: {shown}")
+
+
 def read_topics(path: str | Path, wanted: dict[str, str]) -> dict[str, tuple[list[int], list[bytes]]]:
     """Raw messages of the ``{topic: msgtype}`` present in the bag, as (bag stamps, raws).
 
@@ -45,6 +91,9 @@ def read_topics(path: str | Path, wanted: dict[str, str]) -> dict[str, tuple[lis
                     if conn.msgtype != wanted[conn.topic]:
                         raise InputError(path, f"topic {conn.topic} has type {conn.msgtype}, "
                                                f"expected {wanted[conn.topic]}")
+                    # messages are decoded by the expected layout: a recording made with another
+                    # definition of the type would be misread, so say which field differs
+                    _check_definition(path, conn, typestore())
                     conns.append(conn)
                     out.setdefault(conn.topic, ([], []))
             # rosbags reads every connection when given none, so only ask when a topic matched

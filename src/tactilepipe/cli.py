@@ -123,8 +123,14 @@ def cmd_ingest_tool(args) -> None:
     p = _params(args, "tool_ingest")
     ti = p["tool_ingest"]
     raw = open_trial(args.trial, args.format, ti["ros_topics"])
-    info = ingest_trial(raw, args.out, ti["image_size"], ti["max_offset_s"])
+    info = ingest_trial(raw, args.out, ti["image_size"], ti)
     print(json.dumps({k: info[k] for k in ("trial", "frames", "force_samples", "clock", "drops")}))
+
+
+def cmd_tool_clock_figure(args) -> None:
+    from tactilepipe.tool.clock_report import clock_figure
+    n = clock_figure([Path(s) for s in args.shards], Path(args.out))
+    print(json.dumps({"figure": args.out, "trials_plotted": n}))
 
 
 def cmd_tool_dataset(args) -> None:
@@ -165,16 +171,16 @@ def cmd_tool_report(args) -> None:
 
 def cmd_predict(args) -> None:
     from tactilepipe.tool.predict import stream_predictions
-    p = _params(args, "tool_ingest.ros_topics", "tool_ingest.image_size")
+    p = _params(args, "tool_ingest.ros_topics", "tool_ingest.image_size", "predict")
     stream_predictions(Path(args.checkpoint), Path(args.trial), args.format, p, limit=args.limit)
 
 
 def cmd_dataset(args) -> None:
     from tactilepipe.atomic import write_parquet, write_text
     from tactilepipe.volume.dataset import build_dataset, session_lifts
-    p = _params(args, "volume_sessions", "segment")
+    p = _params(args, "volume_sessions", "segment", "papillarray_axes")
     lifts = session_lifts(p["volume_sessions"], Path(args.raw_root), Path(args.shard_root))
-    data, qc = build_dataset(lifts, p["segment"])
+    data, qc = build_dataset(lifts, p["segment"], p["papillarray_axes"])
     write_parquet(args.out, data)
     write_text(args.qc, qc.to_csv(index=False))
 
@@ -260,8 +266,8 @@ def cmd_report_tool_data(args) -> None:
     build_data_report(Path(args.in_dir) / "data", Path(args.in_dir), label, p["tool_split"]["level_n"])
 def cmd_volume_regimes(args) -> None:
     from tactilepipe.volume.regimes import compare_regimes
-    p = _params(args, "scale", "seed", "simulate_volume", "segment", "folds", "mlp", "baseline", "volume_sensor",
-                "volume_regimes")
+    p = _params(args, "scale", "seed", "simulate_volume", "segment", "papillarray_axes", "folds", "mlp", "baseline",
+                "volume_sensor", "volume_regimes")
     metrics = compare_regimes(p, Path(args.out_dir), args.jobs, args.regimes)
     print(json.dumps({name: {"r2": {m: round(v["mean"], 4) for m, v in r["r2"].items()}, "mu_star": r["mu_star"]}
                       for name, r in metrics["regimes"].items()}))
@@ -302,6 +308,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--format", choices=["native", "public", "ros"], required=True)
     s.add_argument("--out", required=True)
     s.set_defaults(func=cmd_ingest_tool)
+
+    s = sub.add_parser("tool-clock-figure", help="QC figure: each native trial's clock correlation against lag")
+    s.add_argument("--shards", nargs="+", required=True, help="a session's tool shards")
+    s.add_argument("--out", required=True, help="PNG to write")
+    s.set_defaults(func=cmd_tool_clock_figure)
 
     s = sub.add_parser("tool-dataset", parents=[common], help="sync frames and force, references -> arrays")
     s.add_argument("--kind", choices=["normal", "shear"], required=True)

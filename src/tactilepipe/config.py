@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +42,29 @@ def _format_error(err: jsonschema.ValidationError, source: str) -> str:
     return f"{source}: invalid parameter at '{where}': {err.message}"
 
 
+# YAML 1.1 (PyYAML, and Snakemake's config loading) reads 1e-4 as a string: its floats need a dot
+# (1.0e-4). YAML 1.2 and every other reader take it as a number, so where the schema asks for a
+# number, a string of this form is one.
+_YAML12_FLOAT = re.compile(r"^[-+]?(\.[0-9]+|[0-9]+(\.[0-9]*)?)([eE][-+]?[0-9]+)?$")
+
+
+def _numbers_yaml11_missed(raw: dict) -> dict:
+    """``raw`` with number-looking strings turned into numbers where the schema expects one."""
+    raw = copy.deepcopy(raw)
+    validator = jsonschema.Draft202012Validator(_schema())
+    for err in validator.iter_errors(raw):
+        expected = err.validator_value if err.validator == "type" else None
+        expected = [expected] if isinstance(expected, str) else expected or []
+        if "number" not in expected or not isinstance(err.instance, str) or not _YAML12_FLOAT.match(err.instance):
+            continue
+        *parents, key = err.absolute_path
+        node = raw
+        for k in parents:
+            node = node[k]
+        node[key] = float(err.instance)
+    return raw
+
+
 def validate(raw: dict, source: str = "params.yaml") -> None:
     """Raise ConfigError naming the first offending key (wrong key, type or range)."""
     validator = jsonschema.Draft202012Validator(_schema())
@@ -57,6 +81,8 @@ def resolve(raw: dict, source: str = "params.yaml", overrides: dict | None = Non
     """
     if not isinstance(raw, dict):
         raise ConfigError(f"{source}: expected a mapping of parameter groups, got {type(raw).__name__}")
+    raw = _numbers_yaml11_missed(raw)
+    overrides = _numbers_yaml11_missed(overrides) if overrides else overrides
     validate(raw, source)
     scale = raw["scale"]
     if scale not in raw["scales"]:
@@ -84,6 +110,10 @@ def _check_consistency(p: dict, source: str) -> None:
     if p["mlp"]["grid"]["modality"] not in p["mlp"]["modalities"]:
         raise ConfigError(f"{source}: mlp.grid.modality '{p['mlp']['grid']['modality']}' is not one of "
                           f"mlp.modalities {sorted(p['mlp']['modalities'])}")
+    for sensor, axes in p["papillarray_axes"].items():
+        if sorted(v[1] for v in axes.values()) != ["x", "y", "z"]:
+            raise ConfigError(f"{source}: papillarray_axes.{sensor} must take each recorded axis x, y, z once "
+                              f"(got {axes})")
     if abs(sum(p["tool_split"]["fractions"]) - 1.0) > 1e-6:
         raise ConfigError(f"{source}: tool_split.fractions must sum to 1 (got {p['tool_split']['fractions']})")
     if p["simulate_volume"]["friction_kinetic"] > p["simulate_volume"]["friction_static"]:

@@ -9,9 +9,10 @@ import yaml
 from tactilepipe import codedeps
 from tactilepipe.config import declared, resolve
 from tactilepipe.errors import TactilepipeError
-from tactilepipe.volume.simulate import read_session_labels, session_plan
+from tactilepipe.volume.labels import read_session_labels
+from tactilepipe.volume.simulate import session_plan
 from tactilepipe.drift.simulate import session_plan as drift_plan
-from tactilepipe.tool.importers import list_trials as list_tool_trials
+from tactilepipe.tool.importers import TRIALS_CSV, list_trials as list_tool_trials
 from tactilepipe.tool.simulate import session_plan as tool_plan
 
 # `config` is params.yaml plus any --config overrides; validate and resolve the scale up front
@@ -186,7 +187,10 @@ def tool_trial_input(w):
     path, fmt = _tool_trial(w.session, w.trial)
     if is_simulated(w.session):
         return [f"raw/tool/{w.session}/nano17.cal", f"{path}/meta.json"]
-    return [p for p in Path(path).rglob("*") if p.is_file()] if Path(path).is_dir() else [path]
+    files = [p for p in Path(path).rglob("*") if p.is_file()] if Path(path).is_dir() else [path]
+    if fmt == "public":         # the trial's tool and pose come from the session's trials.csv
+        files.append(f"raw/tool/{w.session}/{TRIALS_CSV}")
+    return files
 
 
 def _tool_kind(session, name):
@@ -218,9 +222,14 @@ TOOL_MODEL_FIGURES = ["sorted_predictions", "over_time", "per_tool", "window_hea
 TOOL_MODEL_TABLES = ["variants", "per_tool", "per_window", "runtime"]
 
 
+def tool_clock_figures():
+    """Each tool session's clock-sync QC figure (score against lag per trial, chosen lag marked)."""
+    return [f"results/tool/qc/{s}_clock_sync.png" for s in P["tool_sessions"]]
+
+
 def tool_data_targets(scene):
     """QC report, data figures and every split of a tool scene (no model)."""
-    return [f"results/{scene}/qc.md"] + \
+    return [f"results/{scene}/qc.md"] + tool_clock_figures() + \
         [f"results/{scene}/figures/{fig}.png" for fig in TOOL_DATA_FIGURES] + \
         [f"results/{scene}/splits/{split}.json" for split in ("frame", "trial", "loto", "lopo")]
 

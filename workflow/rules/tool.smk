@@ -45,6 +45,22 @@ rule ingest_tool:
         "{CLI} ingest-tool {PARAMS_ARGS} {params.path:q} --format {params.fmt} --out {output:q} > {log:q} 2>&1"
 
 
+rule tool_clock_figure:
+    input:
+        shards=lambda w: [f"results/tool/shards/{w.session}/{name}.parquet" for name in tool_trial_names(w.session)],
+        code=stage_code("cmd_tool_clock_figure"),
+    output:
+        "results/tool/qc/{session}_clock_sync.png",
+    params:
+        graph=graph_params("scale", "tool_sessions"),
+    resources:
+        **rule_resources("tool_clock_figure"),
+    log:
+        f"{LOGS}/tool_clock_figure/{{session}}.log",
+    shell:
+        "{CLI} tool-clock-figure --shards {input.shards:q} --out {output:q} > {log:q} 2>&1"
+
+
 rule tool_dataset:
     input:
         shards=lambda w: tool_shards(TOOL_TARGETS[w.scene][0]),

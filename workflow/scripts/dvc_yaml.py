@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import difflib
 import io
+import re
 import sys
 from pathlib import Path
 
@@ -120,7 +121,7 @@ def generate(params: dict) -> str:
     sim = f"sim-{scale}"
 
     def dvc_path(path: str) -> str:
-        return "/".join("sim-${scale}" if part == sim else part for part in Path(path).parts)
+        return re.sub(rf"(?<![A-Za-z0-9-]){re.escape(sim)}(?![A-Za-z0-9-])", "sim-${scale}", path)
 
     folded = {name: fold_outputs([f for f, s in output_stage.items() if s == name
                                   and Path(f).name not in METRICS | UNCACHED_OUTS], name, output_stage)

@@ -39,6 +39,13 @@ def _decode(png: bytes, where: str) -> np.ndarray:
     return img
 
 
+def orientation(info: dict) -> str:
+    """portrait, landscape or square, from the frame sizes a shard records (older shards: unknown)."""
+    sizes = {tuple(v) for v in info.get("frame_size", {}).values()}
+    kinds = {"portrait" if h > w else "landscape" if w > h else "square" for w, h in sizes}
+    return "/".join(sorted(kinds)) or "unknown"
+
+
 def reference_index(t_s: np.ndarray, force_mag: np.ndarray, rule: str, contact_n: float) -> np.ndarray:
     """Pairs that form the zero-force reference: the first one (the paper's rule) or all pairs
     before the first contact (their per-pixel median is taken)."""
@@ -90,6 +97,14 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
     if not trials:
         raise InputError(out_dir, f"no '{kind}' trials among {len(shards)} shards")
     size = trials[0]["info"]["image_size"]
+    # frames of every trial are squashed to a square: portrait and landscape trials would put the
+    # same contact at different places, so a dataset keeps one orientation
+    shapes = {t["info"]["source"]: orientation(t["info"]) for t in trials}
+    first = next(iter(shapes.values()))
+    for source, o in shapes.items():
+        if o != first:
+            raise InputError(source, f"frames are {o}, those of {trials[0]['info']['source']} are {first}: "
+                                     f"one dataset cannot mix frame orientations (rotate them to one)")
     n = sum(len(t["t_ns"]) for t in trials)
     rows, qc = [], []
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -115,9 +130,11 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
                 "t_ns": trial["t_ns"], "t_s": t_s, "fx": fx, "fy": fy, "fz": fz,
                 "normal": normal, "shear": shear}))
             qc.append({"trial": info["trial"], "tool": info["tool"], "frames": info["frames"], "pairs": m,
-                       "pair_every": trial["pair_every"], "drops": dict(trial["drops"]), "clock": info["clock"],
+                       "pair_every": trial["pair_every"], "drops": dict(trial["drops"]),
+                       "clock": {k: v for k, v in info["clock"].items() if k != "curve"},   # curve: in the shard
                        "force_min_n": float(label_mag.min()), "force_max_n": float(label_mag.max()),
-                       "reference_frames": int(len(ref_idx)), "source": info["source"]})
+                       "reference_frames": int(len(ref_idx)), "source": info["source"],
+                       "frame_size": info.get("frame_size", {})})
             k += m
         frames.flush()
         refs.flush()

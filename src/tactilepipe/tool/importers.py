@@ -3,8 +3,8 @@
 A session folder raw/tool/<session>/ holds trials in one of three layouts:
 - native (what our rig and the simulator write): <trial>/meta.json + digit_*/ + force.log
 - the public dataset of study 000: data_normal/<trial>/ and data_shear/<trial>/ (tactile1,
-  tactile2, force); tools and poses, which that layout does not record, come from an optional
-  trials.csv (trial,tool,orientation_deg,insertion_mm)
+  tactile2, force); tools and poses, which that layout does not record, come from the
+  session's trials.csv (trial,tool,orientation_deg,insertion_mm), required
 - ROS bags: <trial>.bag (ROS1) or <trial>/metadata.yaml (ROS2 sqlite3/mcap), each with a
   <trial>.meta.json sidecar; topic names from params (tool_ingest.ros_topics)
 """
@@ -12,10 +12,12 @@ A session folder raw/tool/<session>/ holds trials in one of three layouts:
 from __future__ import annotations
 
 import csv
+import io
 from pathlib import Path
 
 import numpy as np
 
+from tactilepipe.csvtext import read_text_table
 from tactilepipe.errors import InputError
 from tactilepipe.tool.raw import RawTrial, SensorFrames
 
@@ -46,26 +48,62 @@ def list_trials(session_dir: str | Path) -> list[tuple[str, Path, str]]:
             found += [(f"{path.name}-{t.name}", t, "public") for t in sorted(path.iterdir()) if t.is_dir()]
         elif (fmt := trial_format(path)) is not None:
             found.append((path.stem if path.is_file() else path.name, path, fmt))
+    public = [path for _, path, fmt in found if fmt == "public"]
+    if public:
+        check_public_session(session_dir, public)
     if not found:
         raise InputError(session_dir, "no trials found (native trial folders, data_normal/ or data_shear/, "
                                       "or ROS bags with .meta.json sidecars)")
     return found
 
 
-def _public_meta(session_dir: Path) -> dict[str, dict]:
-    path = session_dir / "trials.csv"
+TRIALS_CSV = "trials.csv"
+TRIALS_HEADER = ("trial", "tool", "orientation_deg", "insertion_mm")
+
+
+def read_trials_csv(session_dir: str | Path) -> dict[str, dict]:
+    """trials.csv of a public-layout session: trial -> tool, orientation_deg, insertion_mm.
+
+    The public layout does not record which tool a trial used; every split by tool (and the
+    report) needs it, so the file is required. A trial is named by its folder (t0) or, where
+    data_normal/ and data_shear/ reuse a name, by kind folder and name (data_normal/t0).
+    """
+    path = Path(session_dir) / TRIALS_CSV
     if not path.exists():
-        return {}
-    with path.open(newline="") as fh:
-        rows = list(csv.DictReader(fh))
-    out = {}
-    for line, row in enumerate(rows, start=2):
+        raise InputError(path, f"missing: a public-layout session needs {TRIALS_CSV} "
+                               f"({','.join(TRIALS_HEADER)}): the layout does not record the tool of a trial")
+    reader = csv.DictReader(io.StringIO(read_text_table(path, TRIALS_CSV), newline=""))
+    reader.fieldnames = [f.strip() for f in reader.fieldnames or []]
+    if not set(TRIALS_HEADER) <= set(reader.fieldnames):
+        raise InputError(path, f"header must hold {','.join(TRIALS_HEADER)} (found {reader.fieldnames})", "line 1")
+    out: dict[str, dict] = {}
+    for line, row in enumerate(reader, start=2):
         try:
-            out[row["trial"]] = {"tool": row["tool"], "orientation_deg": float(row["orientation_deg"]),
-                                 "insertion_mm": float(row["insertion_mm"])}
-        except (KeyError, TypeError, ValueError) as exc:
-            raise InputError(path, f"expected trial,tool,orientation_deg,insertion_mm ({exc})", f"line {line}") from None
+            trial, tool = row["trial"].strip(), row["tool"].strip()
+            meta = {"tool": tool, "orientation_deg": float(row["orientation_deg"]),
+                    "insertion_mm": float(row["insertion_mm"])}
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise InputError(path, f"expected {','.join(TRIALS_HEADER)} ({exc})", f"line {line}") from None
+        if not trial or not tool:
+            raise InputError(path, "trial and tool must not be empty", f"line {line}")
+        if trial in out:
+            raise InputError(path, f"trial {trial} is listed again", f"line {line}")
+        out[trial] = meta
     return out
+
+
+def public_trial_meta(table: dict[str, dict], trial_dir: Path) -> dict | None:
+    return table.get(f"{trial_dir.parent.name}/{trial_dir.name}", table.get(trial_dir.name))
+
+
+def check_public_session(session_dir: Path, trial_dirs: list[Path]) -> None:
+    """InputError naming trials.csv and every public trial it gives no tool for (before any job runs)."""
+    table = read_trials_csv(session_dir)
+    lacking = [f"{t.parent.name}/{t.name}" for t in trial_dirs if public_trial_meta(table, t) is None]
+    if lacking:
+        shown = ", ".join(lacking[:10]) + (f" and {len(lacking) - 10} more" if len(lacking) > 10 else "")
+        raise InputError(session_dir / TRIALS_CSV, f"no tool for {len(lacking)} of {len(trial_dirs)} public "
+                                                  f"trials: {shown}")
 
 
 def open_public_trial(trial_dir: Path) -> RawTrial:
@@ -81,8 +119,8 @@ def open_public_trial(trial_dir: Path) -> RawTrial:
     else:
         force[:, 0] = data["force_n"]
     session_dir = trial_dir.parent.parent
-    meta = _public_meta(session_dir).get(trial_dir.name, {"tool": "unknown", "orientation_deg": float("nan"),
-                                                          "insertion_mm": float("nan")})
+    check_public_session(session_dir, [trial_dir])
+    meta = public_trial_meta(read_trials_csv(session_dir), trial_dir)
     frames = {name: SensorFrames(host_ns, (lambda imgs: lambda i: imgs[i])(data[key]),
                                  [f"{trial_dir}/{sub} frame {i}" for i in range(n)])
               for name, key, sub in (("digit_left", "frames_left", "tactile1"), ("digit_right", "frames_right", "tactile2"))}

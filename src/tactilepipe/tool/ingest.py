@@ -3,12 +3,14 @@ sensors with their times, and the force rows on the same clock.
 
 Here a frame becomes a small grayscale image: BGR -> gray -> resize to ``image_size`` (area
 interpolation), encoded losslessly. The force clock is refined against the images when the
-importer asks for it (RawTrial.clock["refine"]).
+importer asks for it (RawTrial.clock["refine"]; tool/clock_sync.py), and a camera that froze
+while the force changed is refused whatever the layout.
 """
 
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import cv2
@@ -19,7 +21,7 @@ import pyarrow.parquet as pq
 from tactilepipe.atomic import atomic_path
 from tactilepipe.errors import InputError
 from tactilepipe.tool.raw import RawTrial
-from tactilepipe.tool.sync import estimate_offset
+from tactilepipe.tool.clock_sync import change_signal, fit_offset, frozen_frames, frozen_runs, judge
 
 
 def preprocess(bgr: np.ndarray, size: int) -> np.ndarray:
@@ -51,27 +53,85 @@ def check_exposure(gray: np.ndarray, where: str, name: str) -> None:
         raise InputError(where, f"{name}: frame is saturated (all white: over-exposed?)")
 
 
-def _decode_sensor(frames, size: int, name: str) -> tuple[list[bytes], np.ndarray]:
-    pngs, change = [], np.zeros(len(frames))
-    first = None
+# Frames bit-identical over this many in a row: the camera re-delivered a stale buffer (a real
+# sensor's noise never repeats an exposure). Harmless at rest, wrong labels while the force moves.
+FROZEN_RUN = 3
+
+
+def _decode_sensor(frames, size: int, name: str) -> tuple[list[bytes], np.ndarray, list[int]]:
+    """PNG bytes of every preprocessed frame, the frames themselves (n, size, size) and the
+    recorded frame size [width, height]."""
+    pngs, grays = [], np.zeros((len(frames), size, size), np.uint8)
+    first_shape = None
     for i in range(len(frames)):
         bgr = frames.load(i)
-        check_frame(bgr, None if first is None else first_shape, frames.source[i], name)
+        check_frame(bgr, first_shape, frames.source[i], name)
         first_shape = bgr.shape
         img = preprocess(bgr, size)
         check_exposure(img, frames.source[i], name)
-        if first is None:
-            first = img.astype(np.int16)
-        change[i] = np.abs(img.astype(np.int16) - first).mean()
+        grays[i] = img
         ok, buf = cv2.imencode(".png", img, [cv2.IMWRITE_PNG_COMPRESSION, 1])
         if not ok:
             raise InputError(frames.source[i], f"{name}: cannot PNG-encode the preprocessed frame")
         pngs.append(buf.tobytes())
-    return pngs, change
+    return pngs, grays, [int(first_shape[1]), int(first_shape[0])]
 
 
-def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, max_offset_s: float = 1.0) -> dict:
+def _refine_clock(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.ndarray, ingest: dict
+                  ) -> tuple[int, dict]:
+    """Shift (ns) to add to the coarse force times, and the clock record; InputError when the
+    offset cannot be found and the parameters say to refuse."""
+    clock, search = ingest["clock"], ingest["max_offset_s"]
+    mag = np.linalg.norm(force, axis=1)
+    spread = float(mag.max() - mag.min())
+    if spread < clock["min_force_range_n"]:
+        raise InputError(raw.source, f"the force log is flat (|F| varies by {spread:.3f} N < "
+                                     f"tool_ingest.clock.min_force_range_n {clock['min_force_range_n']} N): nothing "
+                                     f"to align the Arduino clock on (Nano17 unplugged, or no press?)")
+    ref = next(iter(raw.frames.values())).host_ns[0]
+    fingers = {n: ((f.host_ns - ref) / 1e9, change_signal(grays[n])) for n, f in raw.frames.items()}
+    fit = fit_offset(fingers, (force_ns - ref) / 1e9, mag, search)
+    record = fit.record()
+    if fit.on_edge:
+        raise InputError(raw.source, f"the clock offset found ({fit.shift_s:+.3f} s, correlation {fit.score:.2f}) is on "
+                                     f"the edge of the search window +-{search} s: the true offset may lie beyond "
+                                     f"it (tool_ingest.max_offset_s), or the images do not follow the force")
+    why = judge(fit, clock, search)
+    if why is None:
+        return int(round(fit.shift_s * 1e9)), record
+    if clock["on_low_score"] == "refuse":
+        raise InputError(raw.source, f"cannot align the force clock to the cameras: {why}")
+    # host_clock: keep the port-open clock (good to ~0.1-0.5 s), say so now and in QC
+    print(f"warning: {raw.source}: force clock not refined, host clock kept: {why}", file=sys.stderr)
+    record.update({"refined_shift_s": 0.0, "fallback": f"host clock: {why}"})
+    return 0, record
+
+
+def _check_frozen(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.ndarray, limit_n: float,
+                  whole_only: bool = False) -> None:
+    """InputError for a camera whose frames are all bit-identical, or (unless ``whole_only``, used
+    while the force clock is still coarse) stay identical while |F| changes by more than
+    ``limit_n`` (its labels would follow the force, its images would not)."""
+    mag = np.linalg.norm(force, axis=1)
+    for name, frames in raw.frames.items():
+        for a, b in frozen_runs(frozen_frames(grays[name]), FROZEN_RUN):
+            if whole_only and not (a == 0 and b == len(frames) - 1):
+                continue
+            t0, t1 = frames.host_ns[a], frames.host_ns[b]
+            inside = mag[(force_ns >= t0) & (force_ns <= t1)]
+            ends = np.interp([t0, t1], force_ns, mag)
+            seen = np.concatenate([inside, ends])
+            change = float(seen.max() - seen.min())
+            if change > limit_n or (a == 0 and b == len(frames) - 1):
+                raise InputError(frames.source[a], f"{name}: frames {a}-{b} of {len(frames)} are bit-identical while "
+                                                   f"|F| changes by {change:.2f} N: the camera froze")
+
+
+def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, ingest: dict) -> dict:
     """Write the shard atomically; returns the trial's QC record (counts, clock offset found).
+
+    ``ingest``: params.yaml's tool_ingest group (max_offset_s and clock: how the force clock is
+    refined and when a fit is refused).
 
     The record's ``drops`` are the importer's counted drops by reason (e.g. "serial: garbage
     bytes", "serial: ADC saturated": Nano17 samples at the ADC rails, left out of the force rows);
@@ -90,18 +150,15 @@ def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, max_offset_s
         bad = int(np.argmax(~np.isfinite(force).all(axis=1)))
         raise InputError(raw.source, "force is NaN or inf", f"force sample {bad}")
     clock = dict(raw.clock)
+    grays = {name: d[1] for name, d in decoded.items()}
     if clock.get("refine"):
-        # tactile change (both fingers) vs force magnitude, on the host clock in seconds
-        ref = next(iter(raw.frames.values())).host_ns[0]
-        name0 = next(iter(raw.frames))
-        t_frames = (raw.frames[name0].host_ns - ref) / 1e9
-        tactile = sum(np.interp(t_frames, (raw.frames[n].host_ns - ref) / 1e9, decoded[n][1]) for n in raw.frames)
-        shift, score = estimate_offset(t_frames, tactile, (force_ns - ref) / 1e9,
-                                       np.linalg.norm(force, axis=1), max_offset_s)
-        force_ns = force_ns + int(round(shift * 1e9))
-        clock.update({"refined_shift_s": shift, "xcorr": score})
+        _check_frozen(raw, grays, force_ns, force, ingest["clock"]["min_force_range_n"], whole_only=True)
+        shift_ns, record = _refine_clock(raw, grays, force_ns, force, ingest)
+        force_ns = force_ns + shift_ns
+        clock.update(record)
+    _check_frozen(raw, grays, force_ns, force, ingest["clock"]["min_force_range_n"])
     rows_sensor, rows_t, rows_png = [], [], []
-    for name, (pngs, _) in decoded.items():
+    for name, (pngs, _, _) in decoded.items():
         rows_sensor += [name] * len(pngs)
         rows_t.append(raw.frames[name].host_ns.astype(np.int64))
         rows_png += pngs
@@ -118,6 +175,7 @@ def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, max_offset_s
     info = {"trial": raw.trial, "tool": raw.tool, "kind": raw.kind, "orientation_deg": raw.orientation_deg,
             "insertion_mm": raw.insertion_mm, "image_size": image_size, "clock": clock,
             "drops": raw.drops, "frames": {n: len(f) for n, f in raw.frames.items()}, "force_samples": n_force,
+            "frame_size": {n: d[2] for n, d in decoded.items()},   # [w, h] before the square resize
             "source": raw.source}
     table = table.replace_schema_metadata({b"tactilepipe": json.dumps(info).encode()})
     with atomic_path(shard) as tmp:

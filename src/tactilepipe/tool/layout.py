@@ -5,7 +5,8 @@
       <trial>/
         meta.json                 tool, grasp pose, trial kind (see TrialMeta)
         digit_left/frames.csv     frame,host_ns     (host clock, one row per frame)
-        digit_left/frame_000000.png ...             BGR uint8, portrait 240 wide x 320 high (QVGA)
+        digit_left/frame_000000.png ...             BGR uint8, portrait 240 wide x 320 high (QVGA; VGA
+                                                    and landscape frames are read too: DIGIT_SIZES)
         digit_right/...           same for the other finger
         force.log                 the Arduino's serial output, see below
 
@@ -33,6 +34,10 @@ from tactilepipe.errors import InputError
 
 SENSORS = ("digit_left", "digit_right")
 FRAME_W, FRAME_H = 240, 320          # portrait QVGA, as digit-interface returns it
+# (height, width) of the DIGIT's stream modes, QVGA and VGA, either way up: the model sees every
+# frame resized to a square, so a trial's size only has to be one the sensor streams (and one
+# orientation per dataset: tool/dataset.py)
+DIGIT_SIZES = ((320, 240), (240, 320), (640, 480), (480, 640))
 ADC_COUNTS, ADC_VOLTS = 1023, 5.0
 ADC_ZERO_V = 2.5
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
@@ -103,7 +108,7 @@ def read_frame_index(sensor_dir: str | Path) -> np.ndarray:
     if not path.exists():
         raise InputError(path, "missing: every sensor folder needs frames.csv (frame,host_ns)")
     try:
-        lines = path.read_bytes().decode("ascii").split("\n")
+        lines = path.read_bytes().removeprefix(b"\xef\xbb\xbf").decode("ascii").split("\n")   # BOM: a spreadsheet
     except UnicodeDecodeError as exc:
         line = path.read_bytes()[:exc.start].count(b"\n") + 1
         raise InputError(path, f"non-ASCII byte 0x{exc.object[exc.start]:02x}: not a frames.csv written by the rig",

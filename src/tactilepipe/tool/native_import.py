@@ -12,28 +12,29 @@ import cv2
 import numpy as np
 
 from tactilepipe.errors import InputError
-from tactilepipe.tool.layout import FRAME_H, FRAME_NAME, FRAME_W, SENSORS, TrialMeta, read_calibration, read_frame_index
+from tactilepipe.tool.imagefile import read_image
+from tactilepipe.tool.layout import DIGIT_SIZES, FRAME_NAME, SENSORS, TrialMeta, read_calibration, read_frame_index
 from tactilepipe.tool.raw import RawTrial, SensorFrames
 from tactilepipe.tool.serial_log import read_serial_log
 from tactilepipe.tool.sync import calibrate
 
 
-def read_bgr(path: Path, record: str | None = None, shape: tuple | None = (FRAME_H, FRAME_W, 3)) -> np.ndarray:
-    """Read one frame; unreadable files, wrong size or channel count are InputErrors."""
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise InputError(path, "unreadable or missing image", record)
+def read_bgr(path: Path, record: str | None = None) -> np.ndarray:
+    """Read one frame; unreadable or truncated files, a size no DIGIT streams, or the wrong channel
+    count are InputErrors. (That a sensor keeps one size is checked at ingest.)"""
+    img = read_image(path, cv2.IMREAD_UNCHANGED, record)
     if img.ndim == 2:
         raise InputError(path, f"grayscale image; a DIGIT frame has 3 channels (BGR)", record)
     if img.shape[2] != 3 or img.dtype != np.uint8:
         raise InputError(path, f"expected 3-channel uint8 BGR, got {img.shape[2]} channels of {img.dtype}", record)
-    if shape is not None and img.shape != shape:
-        raise InputError(path, f"frame is {img.shape[1]}x{img.shape[0]}, expected {shape[1]}x{shape[0]} "
-                               f"(portrait QVGA)", record)
+    if img.shape[:2] not in DIGIT_SIZES:
+        modes = ", ".join(f"{w}x{h}" for h, w in DIGIT_SIZES)
+        raise InputError(path, f"frame is {img.shape[1]}x{img.shape[0]}, not a DIGIT resolution ({modes})", record)
     return img
 
 
-def _sensor_frames(sensor_dir: Path) -> SensorFrames:
+def _sensor_frames(sensor_dir: Path) -> tuple[SensorFrames, int]:
+    """The sensor's frames, and how many frame files frames.csv does not list (left out, counted)."""
     stamps = read_frame_index(sensor_dir)
     if len(stamps) == 0:
         raise InputError(sensor_dir / "frames.csv", "no frames")
@@ -41,18 +42,20 @@ def _sensor_frames(sensor_dir: Path) -> SensorFrames:
     missing = [p for p in paths if not p.exists()]
     if missing:
         raise InputError(missing[0], f"frames.csv lists {len(stamps)} frames but {len(missing)} files are missing")
-    return SensorFrames(stamps, lambda i: read_bgr(paths[i]), [str(p) for p in paths])
+    listed = {p.name for p in paths}
+    extra = sum(1 for p in sensor_dir.glob("frame_*.png") if p.name not in listed)
+    return SensorFrames(stamps, lambda i: read_bgr(paths[i]), [str(p) for p in paths]), extra
 
 
 def read_native_trial(trial_dir: str | Path, bias_window_s: float = 0.5) -> RawTrial:
     trial_dir = Path(trial_dir)
     session_dir = trial_dir.parent
     meta = TrialMeta.read(trial_dir)
-    frames = {}
+    frames, extra = {}, {}
     for sensor in SENSORS:
         if not (trial_dir / sensor).is_dir():
             raise InputError(trial_dir / sensor, "missing sensor folder")
-        frames[sensor] = _sensor_frames(trial_dir / sensor)
+        frames[sensor], extra[sensor] = _sensor_frames(trial_dir / sensor)
     log = read_serial_log(trial_dir / "force.log")
     matrix = read_calibration(session_dir / "nano17.cal")
     rest = log.arduino_ms <= log.arduino_ms[0] + bias_window_s * 1000
@@ -66,4 +69,5 @@ def read_native_trial(trial_dir: str | Path, bias_window_s: float = 0.5) -> RawT
         orientation_deg=meta.orientation_deg, insertion_mm=meta.insertion_mm, frames=frames,
         force_host_ns=host_ns, force_n=force, source=str(trial_dir),
         clock={"method": "serial_start+xcorr", "refine": True},
-        drops={f"serial: {k}": v for k, v in log.drops.items()})
+        drops={**{f"serial: {k}": v for k, v in log.drops.items()},
+               **{f"{sensor}: frame files not in frames.csv": n for sensor, n in extra.items() if n}})

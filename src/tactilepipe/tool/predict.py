@@ -4,10 +4,16 @@ Each frame pair is preprocessed exactly as for training (tool/ingest.preprocess 
 then the loader's area downscale to the model's input size), stacked with
 the trial's first pair as the zero-force reference, and run at batch 1; the prediction and the
 latency (preprocessing + model) are printed per pair, then a summary with the sustained rate.
+
+Threads (params.yaml ``predict``): batch-1 inference of a small model is latency-bound, and on a
+CPU shared with other jobs a thread per core spinning between ops loses its core to them at
+every op; one passive thread keeps the DIGIT rate where two spinning ones collapsed
+(benchmarks/bench_predict_load.py).
 """
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from pathlib import Path
@@ -22,9 +28,22 @@ from tactilepipe.tool.sync import pair_frames
 
 def stream_predictions(checkpoint: Path, trial: Path, fmt: str, p: dict, limit: int | None = None,
                        out=sys.stdout) -> dict:
+    # OpenMP reads its wait policy when torch first loads it: effective when predict starts the
+    # process (the CLI), not when torch was already imported by the caller
+    os.environ["OMP_WAIT_POLICY"] = p["predict"]["wait_policy"].upper()
     import torch
-    from tactilepipe.tool.train import denormalise, load_model
-    model, meta = load_model(checkpoint)
+    from tactilepipe.tool.train import load_model
+    saved_threads = torch.get_num_threads()
+    torch.set_num_threads(p["predict"]["num_threads"])
+    try:
+        model, meta = load_model(checkpoint)
+        return _stream(model, meta, trial, fmt, p, limit, out, torch)
+    finally:
+        torch.set_num_threads(saved_threads)       # an in-process caller keeps its own setting
+
+
+def _stream(model, meta, trial, fmt, p, limit, out, torch) -> dict:
+    from tactilepipe.tool.train import denormalise
     model.eval()
     size = meta["image_size"]
     raw = open_trial(trial, fmt, p["tool_ingest"]["ros_topics"])

@@ -1,6 +1,6 @@
 """The public dataset layout of study 000: writer (for simulated data) and reader (the importer).
 
-    <root>/data_normal/<trial>/tactile1/tactile_frame_NNNN.jpg    first DIGIT
+    <root>/data_normal/<trial>/tactile1/tactile_frame_NNNN.jpg    first DIGIT (.jpg, .jpeg or .png)
                                tactile2/tactile_frame_NNNN.jpg    second DIGIT
                                force/force_data_NNNN.txt          one line per frame
     <root>/data_shear/<trial>/...                                 same, shear trials
@@ -24,13 +24,14 @@ from scipy.signal import savgol_filter
 
 from tactilepipe.atomic import atomic_path, write_text
 from tactilepipe.errors import InputError
+from tactilepipe.tool.imagefile import read_image
 
 KIND_DIRS = {"normal": "data_normal", "shear": "data_shear"}
 SENSOR_DIRS = ("tactile1", "tactile2")
 FORCE_DIR = "force"
 FRAME_FILE = "tactile_frame_{:04d}.jpg"
 FORCE_FILE = "force_data_{:04d}.txt"
-FRAME_RE = re.compile(r"^tactile_frame_(\d+)\.jpg$")
+FRAME_RE = re.compile(r"^tactile_frame_(\d+)\.(?:jpe?g|png)$", re.IGNORECASE)   # JPEG as published; PNG too
 FORCE_RE = re.compile(r"^force_data_(\d+)\.txt$")
 NORMAL_SLOPE_N = -0.0302            # N per raw count (the public code's conversion)
 NORMAL_INTERCEPT_N = 29.229         # N at raw count 0
@@ -133,10 +134,7 @@ def _parse_force(path: Path, kind: str) -> np.ndarray:
 
 
 def _read_frame(path: Path) -> np.ndarray:
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if img is None:
-        raise InputError(path, "unreadable image (not a JPEG OpenCV can decode)")
-    return img
+    return read_image(path, cv2.IMREAD_COLOR)
 
 
 def read_public_trial(trial_dir: str | Path, kind: str) -> dict:
@@ -152,7 +150,7 @@ def read_public_trial(trial_dir: str | Path, kind: str) -> dict:
     trial_dir = Path(trial_dir)
     if not trial_dir.is_dir():
         raise InputError(trial_dir, "missing: no such trial folder")
-    sides = [_indexed(trial_dir / s, FRAME_RE, "tactile_frame_NNNN.jpg") for s in SENSOR_DIRS]
+    sides = [_indexed(trial_dir / s, FRAME_RE, "tactile_frame_NNNN.jpg (or .png)") for s in SENSOR_DIRS]
     forces = _indexed(trial_dir / FORCE_DIR, FORCE_RE, "force_data_NNNN.txt")
     for sub, frames in zip(SENSOR_DIRS, sides):
         for idx in sorted(set(frames) - set(forces)):

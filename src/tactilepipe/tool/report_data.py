@@ -31,6 +31,15 @@ def qc_markdown(qc: dict, label: str) -> str:
     head = [f"# QC: {qc['kind']} trials", "",
             f"{len(qc['trials'])} trials, {qc['pairs']} frame pairs at {qc['image_size']} px; "
             f"dropped in total: {total_drops or 'none'}.", ""]
+    sizes = sorted({f"{w}x{h}" for t in qc["trials"] for w, h in t.get("frame_size", {}).values()})
+    if sizes:
+        head += [f"Frames recorded at {', '.join(sizes)} (width x height), resized to {qc['image_size']} x "
+                 f"{qc['image_size']} px: the aspect ratio is not kept.", ""]
+    fallback = [t["trial"] for t in qc["trials"] if t["clock"].get("fallback")]
+    if fallback:
+        head += [f"**Clock not refined:** {len(fallback)} trial(s) ({', '.join(fallback)}) keep the host clock "
+                 f"(tool_ingest.clock.on_low_score: host_clock): their labels may be off by the Arduino's "
+                 f"port-open offset (tenths of a second).", ""]
     saturated = {t["trial"]: sum(v for k, v in t["drops"].items() if k.endswith(SATURATED)) for t in qc["trials"]}
     saturated = {k: v for k, v in saturated.items() if v}
     if saturated:

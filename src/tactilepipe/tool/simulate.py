@@ -697,6 +697,11 @@ def simulate_public_session(root: str | Path, params: dict, seed: int | None = N
             forces = wrench[:, :3] + noise
         pl.write_public_trial(root, spec.name, left, right, forces, spec.kind)
         names.append(spec.name)
+    # the tools and poses, which the layout itself does not record (tool/importers.py)
+    from tactilepipe.atomic import write_text
+    rows = ["trial,tool,orientation_deg,insertion_mm"] + [
+        f"{s.name},{s.tool},{s.orientation_deg:g},{s.insertion_mm:g}" for s in plan]
+    write_text(Path(root) / "trials.csv", "\n".join(rows) + "\n")
     return names
 
 

@@ -1,10 +1,9 @@
 """Putting the force on the camera clock, and giving every frame pair its force.
 
 The Arduino counts milliseconds from its own boot; the host only knows roughly when it opened
-the port. The residual offset is found by cross-correlating what both sensors see: the tactile
-change against the reference frame (images) and the force magnitude (Nano17). Then every frame
-pair gets the force linearly interpolated at its time, unless the nearest force samples are
-further apart than ``max_gap_s`` (the frame is dropped and counted).
+the port. The residual offset is found from what both sensors see (tool/clock_sync.py). Then
+every frame pair gets the force linearly interpolated at its time, unless the nearest force
+samples are further apart than ``max_gap_s`` (the frame is dropped and counted).
 """
 
 from __future__ import annotations
@@ -18,36 +17,6 @@ def calibrate(counts: np.ndarray, matrix: np.ndarray, bias_counts: np.ndarray) -
     """Forces/torques (n, 6) from gauge counts: F = C (v - v_bias)."""
     volts = counts_to_volts(counts) - counts_to_volts(bias_counts)
     return volts @ matrix.T
-
-
-def _standardise(x: np.ndarray) -> np.ndarray:
-    x = np.asarray(x, np.float64)
-    std = x.std()
-    return (x - x.mean()) / std if std > 0 else x * 0.0
-
-
-def estimate_offset(frame_s: np.ndarray, tactile: np.ndarray, force_s: np.ndarray, force: np.ndarray,
-                    search_s: float, step_s: float = 0.005) -> tuple[float, float]:
-    """Shift d (s) that best aligns force(t - d) with the tactile signal, and its correlation.
-
-    frame_s, force_s: times on their own clocks, already coarsely aligned (|true d| <= search_s).
-    """
-    lo = max(frame_s[0], force_s[0] + search_s)
-    hi = min(frame_s[-1], force_s[-1] - search_s)
-    if hi - lo < 4 * search_s:
-        lo, hi = frame_s[0], frame_s[-1]
-    grid = np.arange(lo, hi, step_s)
-    a = _standardise(np.interp(grid, frame_s, tactile))
-    shifts = np.arange(-search_s, search_s + step_s / 2, step_s)
-    scores = np.array([np.mean(a * _standardise(np.interp(grid - d, force_s, force))) for d in shifts])
-    k = int(np.argmax(scores))
-    d = shifts[k]
-    if 0 < k < len(scores) - 1:        # parabolic refinement between grid steps
-        y0, y1, y2 = scores[k - 1:k + 2]
-        denom = y0 - 2 * y1 + y2
-        if denom < 0:
-            d += 0.5 * (y0 - y2) / denom * step_s
-    return float(d), float(scores[k])
 
 
 def interpolate_at(times: np.ndarray, sample_t: np.ndarray, values: np.ndarray, max_gap: float

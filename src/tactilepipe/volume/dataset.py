@@ -4,6 +4,12 @@ A lift is off the table while the arm is raised (pose topic) or, in recordings w
 pose topic, while the vertical shear |Fy| carried by the pads stays near its hold level. Either
 way the pads must carry a load off the table: a lift whose vertical shear never rises clearly
 above the noise (nothing grasped) is refused, never kept with its volume label.
+
+Axes (docs/robustness.md): on both sensors +z points into the pad (grip: Fz > 0) and +y down
+along the pad (the container's weight: Fy > 0 off the table); +x completes a right-handed frame,
+so it is mirrored between the two facing sensors. params.yaml `papillarray_axes` maps a sensor
+mounted or configured otherwise onto these; a lift whose Fy is clearly negative off the table
+on a sensor is refused naming it (a reversed axis), never kept with negative loads.
 """
 
 from __future__ import annotations
@@ -69,11 +75,23 @@ def _fill_short_gaps(mask: np.ndarray, max_gap: int) -> np.ndarray:
     return out
 
 
+def apply_axes(rec: dict, axes: dict) -> dict:
+    """``rec`` with each sensor's fx, fy, fz taken from the recorded axis (and sign) that
+    params.yaml ``papillarray_axes`` names for it ({"sensor_0": {"x": "+x", "y": "-y", ...}})."""
+    out = dict(rec)
+    for s in (0, 1):
+        for axis, source in axes[f"sensor_{s}"].items():
+            out[f"f{axis}{s}"] = (-1.0 if source[0] == "-" else 1.0) * rec[f"f{source[1]}{s}"]
+    return out
+
+
 def _vertical_load(rec: dict, seg: dict) -> tuple[np.ndarray, float, int]:
-    """Smoothed vertical shear |Fy0 + Fy1| above its level at rest (the first samples, on the
-    table), the noise of that smoothed signal at rest, and the smoothing width (samples)."""
+    """Smoothed vertical shear |Fy0| + |Fy1| above its level at rest (the first samples, on the
+    table), the noise of that smoothed signal at rest, and the smoothing width (samples). Each
+    sensor counts by its magnitude, so a reversed axis is found by its sign (_check_fy_sign)
+    instead of cancelling the load and reading as a lift that never left the table."""
     dt = np.median(np.diff(rec["t"])) if len(rec["t"]) > 1 else 1.0
-    fy = np.abs(np.nan_to_num(rec["fy0"]) + np.nan_to_num(rec["fy1"]))
+    fy = np.abs(np.nan_to_num(rec["fy0"])) + np.abs(np.nan_to_num(rec["fy1"]))
     width = max(1, int(round(seg["force_smooth_s"] / dt)))
     smooth = np.convolve(fy, np.ones(width) / width, mode="same")
     rest = np.median(smooth[: max(1, width * 2)])
@@ -116,13 +134,14 @@ def off_table_segment(rec: dict, seg: dict, path: str | Path = "?") -> tuple[int
             raise InputError(path, f"the pads carry no load off the table (median vertical shear {carried:.3f} N "
                                    f"above rest over the {duration:.2f}-s off-table phase by the pose method, "
                                    f"need 10 x the rest noise {noise:.3f} N): nothing grasped?")
+    _check_fy_sign(rec, start, stop, width, noise, path)
     return start, stop, used
 
 
 def session_lifts(sessions: list[str], raw_root: Path, shard_root: Path) -> pd.DataFrame:
     """One row per lift of the sessions (lift, session, volume_ml, set, shard), from each session's
     lifts.csv; the shard of raw_root/<session>/<bag> is shard_root/<session>/<bag stem>.parquet."""
-    from tactilepipe.volume.simulate import read_session_labels
+    from tactilepipe.volume.labels import read_session_labels
     rows = []
     for session in sessions:
         for row in read_session_labels(Path(raw_root) / session):
@@ -132,14 +151,32 @@ def session_lifts(sessions: list[str], raw_root: Path, shard_root: Path) -> pd.D
     return pd.DataFrame(rows)
 
 
-def build_dataset(lifts: pd.DataFrame, seg: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
+def _check_fy_sign(rec: dict, start: int, stop: int, width: int, noise: float, path) -> None:
+    """InputError naming each sensor whose Fy is clearly negative off the table (see the module
+    docstring: the container's weight reads Fy > 0 on both)."""
+    wrong = []
+    for s in (0, 1):
+        fy = rec[f"fy{s}"]
+        if not np.isfinite(fy).any():
+            continue
+        level = float(np.median(fy[start:stop]) - np.median(fy[: max(2, width * 2)]))
+        if level < -10 * noise:
+            wrong.append(f"sensor {s} (Fy {level:+.3f} N)")
+    if wrong:
+        raise InputError(path, f"Fy has the wrong sign while the container is lifted on {' and '.join(wrong)}: "
+                               f"its weight must read Fy > 0 (docs/robustness.md); a reversed y axis? Map it in "
+                               f"params.yaml papillarray_axes (e.g. y: '-y')")
+
+
+def build_dataset(lifts: pd.DataFrame, seg: dict, axes: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Off-table samples of every lift, and a QC row per lift.
 
-    lifts: columns lift (unique id), session, volume_ml, set, shard (path).
+    lifts: columns lift (unique id), session, volume_ml, set, shard (path); axes: params.yaml
+    papillarray_axes.
     """
     frames, qc = [], []
     for row in lifts.itertuples(index=False):
-        rec = read_shard(row.shard)
+        rec = apply_axes(read_shard(row.shard), axes)
         start, stop, used = off_table_segment(rec, seg, row.shard)
         part = pd.DataFrame({k: rec[k][start:stop] for k in
                              ("t", "fx0", "fy0", "fz0", "fx1", "fy1", "fz1")})

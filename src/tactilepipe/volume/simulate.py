@@ -359,23 +359,4 @@ def write_session_labels(session_dir: str | Path, lifts: list[Lift]) -> None:
     write_text(Path(session_dir) / "lifts.csv", "\n".join(rows) + "\n")
 
 
-def read_session_labels(session_dir: str | Path) -> list[dict]:
-    path = Path(session_dir) / "lifts.csv"
-    if not path.exists():
-        raise InputError(path, "missing: every recording session needs lifts.csv (bag,volume_ml,set)")
-    with path.open(newline="") as fh:
-        reader = csv.DictReader(fh)
-        if reader.fieldnames is None or not {"bag", "volume_ml", "set"} <= set(reader.fieldnames):
-            raise InputError(path, f"header must hold bag,volume_ml,set (found {reader.fieldnames})")
-        rows = []
-        for line, row in enumerate(reader, start=2):
-            try:
-                volume = float(row["volume_ml"])
-            except (TypeError, ValueError):
-                raise InputError(path, f"volume_ml '{row['volume_ml']}' is not a number", f"line {line}") from None
-            if not np.isfinite(volume) or volume < 0:
-                raise InputError(path, f"volume_ml {volume} must be finite and >= 0", f"line {line}")
-            if row["set"] not in ("main", "unseen"):
-                raise InputError(path, f"set '{row['set']}' must be main or unseen", f"line {line}")
-            rows.append({"bag": row["bag"], "volume_ml": volume, "set": row["set"]})
-    return rows
+# lifts.csv is read by volume/labels.py; the name stays importable from here
