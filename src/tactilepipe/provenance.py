@@ -9,6 +9,7 @@ bury the differences that matter; `dvc metrics diff --targets <scene>/runtime.js
 from __future__ import annotations
 
 import hashlib
+import os
 import platform
 import subprocess
 from importlib import metadata
@@ -19,6 +20,8 @@ from tactilepipe.atomic import write_json
 from tactilepipe.config import declared
 
 PACKAGES = ("torch", "numpy", "scikit-learn", "pandas")
+# environment variables that cap the instruction set of torch's and oneDNN's kernels
+KERNEL_VARIABLES = ("ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA", "DNNL_MAX_CPU_ISA", "OMP_NUM_THREADS")
 CHUNK = 1 << 20
 
 
@@ -51,13 +54,29 @@ def environment() -> dict:
             versions[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
             versions[name] = None
-    env = {"python": platform.python_version(), "packages": versions, "machine": platform.machine()}
+    env = {"python": platform.python_version(), "packages": versions, "machine": platform.machine(),
+           "cpu": _cpu(), "kernel_settings": {k: os.environ.get(k) for k in KERNEL_VARIABLES}}
     try:
         import torch
         env["torch_cpu_capability"] = torch.backends.cpu.get_cpu_capability()
     except ImportError:
         env["torch_cpu_capability"] = None
     return env
+
+
+def _cpu() -> dict:
+    """CPU model and the vector extensions the math libraries choose kernels by (Linux)."""
+    model, flags = platform.processor() or None, set()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            key, _, value = line.partition(":")
+            if key.strip() == "model name" and value.strip():
+                model = value.strip()
+            elif key.strip() == "flags":
+                flags = set(value.split())
+    except OSError:
+        pass
+    return {"model": model, "vector_extensions": sorted(f for f in flags if f.startswith(("avx", "amx", "fma")))}
 
 
 def git_state(root: str | Path = ".") -> dict:
