@@ -36,7 +36,9 @@ TARGET_S = 5.0
 
 def sh(cmd: list[str], cwd: Path) -> float:
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, cwd=cwd, env=ENV, capture_output=True, text=True)
+    # the copy runs its own source: its files are what the rules and dvc.yaml list as code deps
+    env = {**ENV, "PYTHONPATH": str(cwd / "src")} if (cwd / "src" / "tactilepipe").is_dir() else ENV
+    proc = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
     dt = time.perf_counter() - t0
     if proc.returncode != 0:
         sys.exit(f"{' '.join(cmd)} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")

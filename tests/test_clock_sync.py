@@ -5,6 +5,7 @@ edge and a low-confidence fit are named (tool/clock_sync.py via tool/ingest.py).
 from __future__ import annotations
 
 import copy
+import json
 
 import numpy as np
 import pytest
@@ -131,13 +132,30 @@ def _unrelated(name, imgs, stamps):
 
 
 def test_a_low_confidence_fit_is_refused_or_falls_back_to_the_host_clock_as_configured(tmp_path):
+    refuse = copy.deepcopy(INGEST)
+    refuse["clock"]["on_low_score"] = "refuse"
     with pytest.raises(InputError, match=r"^lab/t: cannot align the force clock to the cameras"):
-        shift_of(make_raw(_unrelated), tmp_path)
+        shift_of(make_raw(_unrelated), tmp_path, refuse)
     ingest = copy.deepcopy(INGEST)
     ingest["clock"]["on_low_score"] = "host_clock"
     info = ingest_trial(make_raw(_unrelated), tmp_path / "s.parquet", SIZE, ingest)
     assert info["clock"]["refined_shift_s"] == 0.0 and info["clock"]["fallback"].startswith("host clock")
     assert read_shard_info(tmp_path / "s.parquet")["clock"]["fallback"] == info["clock"]["fallback"]
+
+
+def test_a_low_confidence_trial_can_be_left_out_of_the_dataset_and_named_in_qc(tmp_path):
+    from tactilepipe.tool.dataset import build_tool_dataset
+    ingest = copy.deepcopy(INGEST)
+    ingest["clock"]["on_low_score"] = "drop"
+    bad = ingest_trial(make_raw(_unrelated), tmp_path / "bad.parquet", SIZE, ingest)
+    assert bad["clock"]["dropped"].startswith("clock not aligned")
+    good = ingest_trial(make_raw(seed=1), tmp_path / "good.parquet", SIZE, ingest)
+    assert "dropped" not in good["clock"]
+    sync = {"max_gap_s": 0.2, "pair_rate_hz": 0, "reference": "first", "contact_n": 0.5, "normal_sign": -1}
+    out = build_tool_dataset([tmp_path / "bad.parquet", tmp_path / "good.parquet"], good["kind"], tmp_path / "d", sync)
+    assert [t["trial"] for t in out["trials"]] == [good["trial"]]
+    qc = json.loads((tmp_path / "d" / "qc.json").read_text())
+    assert [d["reason"] for d in qc["dropped_trials"]] == [bad["clock"]["dropped"]]
 
 
 def test_the_shard_keeps_the_score_curve_for_the_qc_figure(tmp_path):

@@ -42,7 +42,10 @@ START_NS = 1_700_000_000_000_000_000
 CAL = np.diag([8.0, 8.0, 20.0, 100.0, 100.0, 100.0])
 SYNC = {"max_gap_s": 0.2, "pair_rate_hz": 0, "reference": "first", "contact_n": 0.5, "normal_sign": 1}
 SIZE = 32                                           # ingest image size
-INGEST = load_params()["tool_ingest"]               # clock refinement as params.yaml sets it
+# clock refinement as params.yaml sets it, but refusing (not leaving out) a trial it cannot align,
+# so that each case's message can be checked here; the drop path is tested in test_clock_sync.py
+INGEST = load_params()["tool_ingest"]
+INGEST["clock"]["on_low_score"] = "refuse"
 N_FRAMES, N_FORCE = 24, 40
 
 

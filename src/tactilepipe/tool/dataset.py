@@ -89,11 +89,15 @@ def load_trial(shard: Path, info: dict, sync: dict) -> dict:
 
 
 def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict) -> dict:
-    trials = []
+    trials, dropped = [], []
     for shard in shards:
         info = read_shard_info(shard)
-        if info["kind"] == kind:
-            trials.append(load_trial(Path(shard), info, sync))
+        if info["kind"] != kind:
+            continue
+        if info["clock"].get("dropped"):          # ingest could not trust its labels' clock
+            dropped.append({"trial": info["trial"], "source": info["source"], "reason": info["clock"]["dropped"]})
+            continue
+        trials.append(load_trial(Path(shard), info, sync))
     if not trials:
         raise InputError(out_dir, f"no '{kind}' trials among {len(shards)} shards")
     size = trials[0]["info"]["image_size"]
@@ -143,5 +147,6 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
     samples["pose"] = samples["tool"] + "@" + samples["orientation_deg"].round(1).astype(str) + "deg/" + \
         samples["insertion_mm"].round(1).astype(str) + "mm"
     write_parquet(out_dir / "samples.parquet", samples)
-    write_json(out_dir / "qc.json", {"kind": kind, "trials": qc, "pairs": int(n), "image_size": size})
+    write_json(out_dir / "qc.json", {"kind": kind, "trials": qc, "pairs": int(n), "image_size": size,
+                                     "dropped_trials": dropped})
     return {"trials": qc, "pairs": n}

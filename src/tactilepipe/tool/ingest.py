@@ -101,6 +101,11 @@ def _refine_clock(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.nd
         return int(round(fit.shift_s * 1e9)), record
     if clock["on_low_score"] == "refuse":
         raise InputError(raw.source, f"cannot align the force clock to the cameras: {why}")
+    if clock["on_low_score"] == "drop":
+        # the shard is written (the graph needs it) but marked: the dataset leaves the trial out
+        print(f"warning: {raw.source}: left out of the dataset, force clock not aligned: {why}", file=sys.stderr)
+        record.update({"refined_shift_s": 0.0, "dropped": f"clock not aligned: {why}"})
+        return 0, record
     # host_clock: keep the port-open clock (good to ~0.1-0.5 s), say so now and in QC
     print(f"warning: {raw.source}: force clock not refined, host clock kept: {why}", file=sys.stderr)
     record.update({"refined_shift_s": 0.0, "fallback": f"host clock: {why}"})

@@ -35,6 +35,11 @@ def qc_markdown(qc: dict, label: str) -> str:
     if sizes:
         head += [f"Frames recorded at {', '.join(sizes)} (width x height), resized to {qc['image_size']} x "
                  f"{qc['image_size']} px: the aspect ratio is not kept.", ""]
+    dropped = qc.get("dropped_trials", [])
+    if dropped:
+        head += [f"**Left out:** {len(dropped)} trial(s) whose force clock could not be aligned to the cameras "
+                 f"(tool_ingest.clock.on_low_score: drop):", ""] + \
+                [f"- {d['trial']} ({d['source']}): {d['reason']}" for d in dropped] + [""]
     fallback = [t["trial"] for t in qc["trials"] if t["clock"].get("fallback")]
     if fallback:
         head += [f"**Clock not refined:** {len(fallback)} trial(s) ({', '.join(fallback)}) keep the host clock "
