@@ -182,3 +182,28 @@ def test_a_tool_model_trains_and_predicts_through_snakemake(smoke_run: Path):
                 str(smoke_run / "raw/tool/sim-smoke/screwdriver_1_p00_normal00"), "--limit", "5"], smoke_run)
     lines = proc.stdout.strip().splitlines()
     assert lines[0] == "pair,t_s,prediction_n,latency_ms" and len(lines) == 7 and "pairs/s" in lines[-1]
+
+
+def test_names_with_spaces_go_through_the_rules(tmp_path: Path):
+    """A session, bag and trial folder named with spaces (as rigs and people name them) are
+    ingested: every path reaches the shell quoted, and the logs land where the rules say."""
+    (tmp_path / "project").mkdir()
+    wd = copy_project(tmp_path / "project", scale="smoke")
+    rig = tmp_path / "rig recordings"
+    tp = [str(BIN / "tactilepipe")]
+    run(tp + ["simulate", "volume", "--scale", "smoke", "--out-dir", str(rig / "volume"), "--lifts", "v000_main_l00"], wd)
+    run(tp + ["simulate", "tool", "--scale", "smoke", "--out-dir", str(rig / "tool"),
+              "--lifts", "paper_knife_p00_normal00"], wd)
+    (wd / "raw/volume/real session").mkdir(parents=True)
+    shutil.copy(rig / "volume/v000_main_l00.bag", wd / "raw/volume/real session/lift 0 ml.bag")
+    (wd / "raw/tool/real rig").mkdir(parents=True)
+    shutil.copy(rig / "tool/nano17.cal", wd / "raw/tool/real rig/nano17.cal")
+    shutil.copytree(rig / "tool/paper_knife_p00_normal00", wd / "raw/tool/real rig/Trial 1")
+    targets = ["results/volume/shards/real session/lift 0 ml.parquet", "results/tool/shards/real rig/Trial 1.parquet"]
+    snakemake(wd, *targets)
+    for target in targets:
+        assert (wd / target).stat().st_size > 0, target
+    assert (wd / "results/logs/ingest/volume/real session/lift 0 ml.log").exists()
+    assert (wd / "results/logs/ingest_tool/real rig/Trial 1.log").exists()
+    stray = [p.name for p in (wd / "results/logs").rglob("*") if p.is_file() and p.name in ("0", "ml.log", "1.log")]
+    assert stray == []
