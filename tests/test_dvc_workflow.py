@@ -309,6 +309,22 @@ def test_marking_pulled_results_refuses_when_content_differs(repo, new_session):
     assert "drift_report" in planned
 
 
+def test_a_parameter_change_reruns_its_rules_without_snakemake_records(repo, new_session):
+    """Where Snakemake has no record of earlier runs (a new machine, a deleted .snakemake/), a
+    parameter change still re-runs exactly the rules that read it: the rules' parameter stamps
+    are inputs, compared by file time."""
+    wd, clone = repo["wd"], repo["root"] / "clone_params"
+    run(["git", "clone", "-q", str(wd), str(clone)], repo["root"])
+    dvc(clone, "pull")
+    run([str(BIN / "python"), "workflow/scripts/mark_pulled.py"], clone)
+    shutil.rmtree(clone / ".snakemake")
+    assert _planned_rules(clone) == set()
+    text = (clone / "params.yaml").read_text()
+    assert text.count("  mu_max: 0.4") == 1
+    (clone / "params.yaml").write_text(text.replace("  mu_max: 0.4", "  mu_max: 0.35"))
+    assert _planned_rules(clone) == {"volume_baseline", "volume_report"}
+
+
 # --- code-aware invalidation: each edit re-runs exactly the rules whose code it is in ---------------
 
 VOLUME_ALL = {"simulate_volume", "simulate_drift", "ingest_papillarray", "volume_dataset", "volume_split",

@@ -7,7 +7,8 @@ from pathlib import Path
 import yaml
 
 from tactilepipe import codedeps
-from tactilepipe.config import declared, resolve
+from tactilepipe.atomic import write_text
+from tactilepipe.config import declared, deep_merge, resolve
 from tactilepipe.errors import TactilepipeError
 from tactilepipe.volume.labels import read_session_labels
 from tactilepipe.volume.simulate import session_plan
@@ -43,17 +44,24 @@ def stage_code(stage):
     return [_repo_relative(codedeps.module_path(m)) for m in sorted(codedeps.stage_modules(stage))]
 
 
-def stage_params(stage):
-    """The parameters the CLI stage declares (its only way in) and their values: a change re-runs
-    the rule, and the dvc.yaml generator lists the keys as the DVC stage's params."""
+PARAM_STAMPS = "results/params"
+
+
+def param_stamp(stage, *graph_keys):
+    """results/params/<stage>.json: the values of the parameters the CLI stage declares (its only
+    way in) and of ``graph_keys``, the ones the rules read to decide which jobs exist or what their
+    commands say. An input of the rule, rewritten only when the values change: a change then
+    re-runs the rule by file time, also where Snakemake has no record of earlier runs (a fresh
+    clone, a new machine), which its params trigger needs. Versioned by git beside the metrics;
+    the dvc.yaml generator reads the stage and the keys from it."""
     keys = codedeps.stage_param_keys(stage)
-    return {"stage": stage, "values": json.loads(json.dumps(declared(P, keys, stage)))}
-
-
-def graph_params(*keys):
-    """Parameters that decide which jobs a rule has or what their command lines say (sessions,
-    which runs, a run's depth and size), read here in the workflow rather than by the stage."""
-    return {"keys": list(keys), "values": json.loads(json.dumps(declared(P, keys, "workflow")))}
+    stamp = {"stage": stage, "declared": list(keys), "graph": list(graph_keys),
+             "values": json.loads(json.dumps(deep_merge(declared(P, keys, stage), declared(P, graph_keys, "workflow"))))}
+    path = Path(PARAM_STAMPS) / f"{stage}.json"
+    text = json.dumps(stamp, indent=1, sort_keys=True) + "\n"
+    if not path.is_file() or path.read_text() != text:
+        write_text(path, text)
+    return str(path)
 
 
 def rule_resources(rule):

@@ -6,13 +6,12 @@ rule drift_report:
         shards=drift_shards(),
         meta=f"raw/drift/{DRIFT_SESSION}/session.json",
         code=stage_code("cmd_report_drift"),
+        params=param_stamp("cmd_report_drift", "drift_session"),
     output:
         reported(DRIFT_TARGETS, "drift"),
         series=f"{DRIFT}/drift_series.csv",
         fits=f"{DRIFT}/fits.csv",
     params:
-        declared=stage_params("cmd_report_drift"),
-        graph=graph_params("scale", "drift_session"),
         provenance=provenance_args("drift"),
     resources:
         **rule_resources("drift_report"),

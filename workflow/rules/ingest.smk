@@ -5,6 +5,7 @@ rule ingest_papillarray:
     input:
         bag="raw/{scene}/{session}/{stem}.bag",
         code=stage_code("cmd_ingest"),
+        params=param_stamp("cmd_ingest"),
     output:
         "results/{scene}/shards/{session}/{stem}.parquet",
     wildcard_constraints:

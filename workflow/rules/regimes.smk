@@ -7,6 +7,7 @@ REGIMES = "results/volume_regimes"
 rule volume_regimes:
     input:
         code=stage_code("cmd_volume_regimes"),
+        params=param_stamp("cmd_volume_regimes"),
     output:
         table=f"{REGIMES}/table1_regimes.csv",
         markdown=f"{REGIMES}/table1_regimes.md",
@@ -17,7 +18,6 @@ rule volume_regimes:
         metrics=f"{REGIMES}/metrics.json",
         qc=[f"{REGIMES}/qc_{name}.csv" for name in P["volume_regimes"]["regimes"]],
     params:
-        declared=stage_params("cmd_volume_regimes"),
         out_dir=REGIMES,
     threads: 2
     resources:

@@ -4,13 +4,13 @@
 rule simulate_volume:
     input:
         code=stage_code("cmd_simulate_volume"),
+        params=param_stamp("cmd_simulate_volume"),
     output:
         bags=[f"raw/volume/{{session}}/{stem}.bag" for stem in volume_bag_stems("sim-")],
         labels="raw/volume/{session}/lifts.csv",
     wildcard_constraints:
         session="sim-[A-Za-z0-9_-]+",
     params:
-        declared=stage_params("cmd_simulate_volume"),
         out_dir=lambda w: f"raw/volume/{w.session}",
     threads: 2
     resources:
@@ -24,13 +24,13 @@ rule simulate_volume:
 rule simulate_drift:
     input:
         code=stage_code("cmd_simulate_drift"),
+        params=param_stamp("cmd_simulate_drift"),
     output:
         bags=[f"raw/drift/{{session}}/{name}.bag" for name in drift_plan(P)],
         meta="raw/drift/{session}/session.json",
     wildcard_constraints:
         session="sim-[A-Za-z0-9_-]+",
     params:
-        declared=stage_params("cmd_simulate_drift"),
         out_dir=lambda w: f"raw/drift/{w.session}",
     threads: 2
     resources:

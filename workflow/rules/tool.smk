@@ -9,13 +9,13 @@ TOOL_SPLITS = ["frame", "trial", "loto", "lopo"]
 rule simulate_tool:
     input:
         code=stage_code("cmd_simulate_tool"),
+        params=param_stamp("cmd_simulate_tool"),
     output:
         cal="raw/tool/{session}/nano17.cal",
         meta=[f"raw/tool/{{session}}/{name}/meta.json" for name in tool_trial_names("sim-")],
     wildcard_constraints:
         session="sim-[A-Za-z0-9_-]+",
     params:
-        declared=stage_params("cmd_simulate_tool"),
         out_dir=lambda w: f"raw/tool/{w.session}",
     threads: 2
     resources:
@@ -30,13 +30,12 @@ rule ingest_tool:
     input:
         trial=tool_trial_input,
         code=stage_code("cmd_ingest_tool"),
+        params=param_stamp("cmd_ingest_tool"),
     output:
         "results/tool/shards/{session}/{trial}.parquet",
     params:
         fmt=lambda w: tool_trial_format(w.session, w.trial),
         path=lambda w: tool_trial_path(w.session, w.trial),
-        declared=stage_params("cmd_ingest_tool"),
-        graph=graph_params("scale", "tool_sessions"),
     resources:
         **rule_resources("ingest_tool"),
     log:
@@ -49,10 +48,9 @@ rule tool_clock_figure:
     input:
         shards=lambda w: [f"results/tool/shards/{w.session}/{name}.parquet" for name in tool_trial_names(w.session)],
         code=stage_code("cmd_tool_clock_figure"),
+        params=param_stamp("cmd_tool_clock_figure"),
     output:
         "results/tool/qc/{session}_clock_sync.png",
-    params:
-        graph=graph_params("scale", "tool_sessions"),
     resources:
         **rule_resources("tool_clock_figure"),
     log:
@@ -65,6 +63,7 @@ rule tool_dataset:
     input:
         shards=lambda w: tool_shards(TOOL_TARGETS[w.scene][0]),
         code=stage_code("cmd_tool_dataset"),
+        params=param_stamp("cmd_tool_dataset", "tool_sessions"),
     output:
         frames="results/{scene}/data/frames.npy",
         references="results/{scene}/data/references.npy",
@@ -74,8 +73,6 @@ rule tool_dataset:
         scene="tool_normal|tool_shear",
     params:
         kind=lambda w: TOOL_TARGETS[w.scene][0],
-        declared=stage_params("cmd_tool_dataset"),
-        graph=graph_params("scale", "tool_sessions"),
     resources:
         **rule_resources("tool_dataset"),
     log:
@@ -89,6 +86,7 @@ rule tool_split:
     input:
         samples="results/{scene}/data/samples.parquet",
         code=stage_code("cmd_tool_split"),
+        params=param_stamp("cmd_tool_split"),
     output:
         "results/{scene}/splits/{split}.json",
     wildcard_constraints:
@@ -96,7 +94,6 @@ rule tool_split:
         split="|".join(TOOL_SPLITS),
     params:
         label=lambda w: TOOL_TARGETS[w.scene][1],
-        declared=stage_params("cmd_tool_split"),
     resources:
         **rule_resources("tool_split"),
     log:
@@ -111,14 +108,12 @@ rule tool_data_report:
         data=rules.tool_dataset.output,
         raw=lambda w: tool_raw_inputs(TOOL_TARGETS[w.scene][0]),
         code=stage_code("cmd_report_tool_data"),
+        params=param_stamp("cmd_report_tool_data"),
     output:
         qc=reported(["results/{scene}/qc.md"], "{scene}")[0],
         figures=reported(expand("results/{{scene}}/figures/{fig}.png", fig=TOOL_DATA_FIGURES), "{scene}"),
     wildcard_constraints:
         scene="tool_normal|tool_shear",
-    params:
-        declared=stage_params("cmd_report_tool_data"),
-        graph=graph_params("scale", "tool_sessions"),
     resources:
         **rule_resources("tool_data_report"),
     log:
@@ -166,6 +161,7 @@ rule tool_train:
         data=rules.tool_dataset.output,
         split=lambda w: f"results/{w.scene}/splits/{run_spec(w.run)[1]}.json",
         code=stage_code("cmd_tool_train"),
+        params=param_stamp("cmd_tool_train"),
     output:
         evaluation="results/{scene}/models/{run}/eval.json",
         predictions="results/{scene}/models/{run}/predictions.parquet",
@@ -176,9 +172,6 @@ rule tool_train:
         run="[a-z_0-9]+",
     params:
         spec=lambda w: run_spec(w.run),
-        declared=stage_params("cmd_tool_train"),
-        graph=graph_params("tool_train.split", "tool_train.depth", "tool_train.image_size", "tool_train.sweep",
-                           "tool_train.loto", "tool_train.variants"),
     threads: 2
     resources:
         **rule_resources("tool_train"),
@@ -197,6 +190,8 @@ rule tool_model_report:
         data=rules.tool_dataset.output,
         raw=lambda w: tool_raw_inputs(TOOL_TARGETS[w.scene][0]),
         code=stage_code("cmd_tool_report"),
+        params=param_stamp("cmd_tool_report", "tool_sessions", "tool_train.split", "tool_train.depth",
+                           "tool_train.image_size", "tool_train.sweep", "tool_train.loto"),
     output:
         metrics=reported(["results/{scene}/metrics.json"], "{scene}")[0],
         provenance="results/{scene}/provenance.json",
@@ -207,8 +202,6 @@ rule tool_model_report:
         scene="tool_normal|tool_shear",
     params:
         sweep=[sweep_run_name(s) for s in P["tool_train"]["sweep"]],
-        declared=stage_params("cmd_tool_report"),
-        graph=graph_params("scale", "tool_sessions", "tool_train.sweep", "tool_train.loto"),
         provenance=lambda w: provenance_args(w.scene),
     resources:
         **rule_resources("tool_model_report"),

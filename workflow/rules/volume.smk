@@ -6,12 +6,10 @@ rule volume_dataset:
         shards=volume_shards(),
         labels=[f"raw/volume/{s}/lifts.csv" for s in P["volume_sessions"]],
         code=stage_code("cmd_dataset"),
+        params=param_stamp("cmd_dataset"),
     output:
         data=f"{VOLUME}/dataset.parquet",
         qc=f"{VOLUME}/qc.csv",
-    params:
-        declared=stage_params("cmd_dataset"),
-        graph=graph_params("scale", "volume_sessions"),
     resources:
         **rule_resources("volume_dataset"),
     log:
@@ -24,10 +22,9 @@ rule volume_split:
     input:
         data=f"{VOLUME}/dataset.parquet",
         code=stage_code("cmd_split"),
+        params=param_stamp("cmd_split"),
     output:
         f"{VOLUME}/folds.json",
-    params:
-        declared=stage_params("cmd_split"),
     resources:
         **rule_resources("volume_split"),
     log:
@@ -41,11 +38,11 @@ rule volume_train:
         data=f"{VOLUME}/dataset.parquet",
         folds=f"{VOLUME}/folds.json",
         code=stage_code("cmd_train"),
+        params=param_stamp("cmd_train"),
     output:
         predictions=f"{VOLUME}/mlp/{{modality}}/predictions.parquet",
         folds=f"{VOLUME}/mlp/{{modality}}/folds.csv",
     params:
-        declared=stage_params("cmd_train"),
         out_dir=lambda w: f"{VOLUME}/mlp/{w.modality}",
     resources:
         **rule_resources("volume_train"),
@@ -61,10 +58,9 @@ rule volume_gridsearch:
         data=f"{VOLUME}/dataset.parquet",
         folds=f"{VOLUME}/folds.json",
         code=stage_code("cmd_gridsearch"),
+        params=param_stamp("cmd_gridsearch"),
     output:
         f"{VOLUME}/mlp/grid.csv",
-    params:
-        declared=stage_params("cmd_gridsearch"),
     resources:
         **rule_resources("volume_gridsearch"),
     log:
@@ -78,13 +74,12 @@ rule volume_baseline:
         data=f"{VOLUME}/dataset.parquet",
         folds=f"{VOLUME}/folds.json",
         code=stage_code("cmd_baseline"),
+        params=param_stamp("cmd_baseline"),
     output:
         predictions=f"{VOLUME}/baseline/predictions.parquet",
         folds=f"{VOLUME}/baseline/folds.csv",
         curve=f"{VOLUME}/baseline/mu_curve.csv",
         mu=f"{VOLUME}/baseline/mu.json",
-    params:
-        declared=stage_params("cmd_baseline"),
     resources:
         **rule_resources("volume_baseline"),
     log:
@@ -104,11 +99,10 @@ rule volume_report:
         shards=volume_shards(),
         raw=volume_raw_inputs(),
         code=stage_code("cmd_report_volume"),
+        params=param_stamp("cmd_report_volume"),
     output:
         reported(VOLUME_TARGETS, "volume"),
     params:
-        declared=stage_params("cmd_report_volume"),
-        graph=graph_params("scale", "volume_sessions"),
         provenance=provenance_args("volume"),
     resources:
         **rule_resources("volume_report"),

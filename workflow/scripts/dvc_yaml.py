@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import difflib
 import io
+import json
 import re
 import sys
 from pathlib import Path
@@ -38,6 +39,7 @@ STAGES = [  # (name, Snakemake targets); "{scale}" is written as DVC's ${scale}
     ("tool_data", ["tool_data"]),
     ("tool_models", ["results/tool_normal/metrics.json", "results/tool_shear/metrics.json"]),
 ]
+STAMPS = "results/params"                   # the rules' parameter stamps (common.smk param_stamp)
 COMMAND = "snakemake --cores 2 --workflow-profile workflow/profiles/default"
 METRICS = {"metrics.json", "provenance.json"}
 UNCACHED_OUTS = {"runtime.json"}
@@ -133,18 +135,16 @@ def generate(params: dict) -> str:
         deps, code, rule_files, keys = set(), set(), set(ALWAYS_RULE_FILES), {"scale"}
         for j in own:
             rule_files.add(str(Path(j.rule.snakefile).resolve().relative_to(Path.cwd().resolve())))
-            declared = j.params.get("declared")
-            if declared:
-                stage = declared["stage"]
-                expected = {str(codedeps.module_path(m).resolve().relative_to(Path.cwd().resolve()))
-                            for m in codedeps.stage_modules(stage)}
+            stamps = [str(f) for f in j.input if str(f).startswith(STAMPS + "/")]
+            for stamp in map(lambda f: json.loads(Path(f).read_text()), stamps):
+                expected = set(codedeps.stage_files(stamp["stage"], Path.cwd()))
                 listed = {str(f) for f in j.input if str(f).endswith(".py")}
                 if listed != expected:
-                    raise SystemExit(f"rule {j.rule.name}: its code inputs are not the closure of {stage}")
-                keys.update(codedeps.stage_param_keys(stage))
-            if j.params.get("graph"):
-                keys.update(j.params["graph"]["keys"])
+                    raise SystemExit(f"rule {j.rule.name}: its code inputs are not the closure of {stamp['stage']}")
+                keys.update(stamp["declared"] + stamp["graph"])
             for f in map(str, j.input):
+                if f.startswith(STAMPS + "/"):
+                    continue                      # DVC reads the same values from params.yaml
                 if f.endswith(".py"):
                     code.add(f)
                 elif output_stage.get(f) == name:
