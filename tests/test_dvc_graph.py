@@ -190,7 +190,9 @@ def test_generator_lists_each_stage_code_closure_and_declared_params():
     assert drift_code == set(codedeps.stage_files("cmd_simulate_drift"))
     assert "src/tactilepipe/tool/model.py" in stages["tool_models"]["deps"]
     assert "src/tactilepipe/tool/model.py" not in stages["volume"]["deps"]
-    assert "simulate_drift" not in stages["drift"]["params"]          # the analysis reads no simulator setting
+    # the analysis reads no simulator setting (provenance.json records them for a simulated session)
+    assert not any(k.startswith("simulate") for k in codedeps.stage_param_keys("cmd_report_drift"))
+    assert "src/tactilepipe/drift/simulate.py" in stages["drift"]["deps"]   # the simulated session's provenance
     assert {"workflow/rules/drift.smk", "workflow/rules/ingest.smk", "workflow/rules/common.smk"} <= set(stages["drift"]["deps"])
     assert "tool_train.lr" in stages["tool_models"]["params"] and "tool_train" not in stages["tool_models"]["params"]
     for stage in stages.values():

@@ -335,8 +335,10 @@ EDITS = [   # (module, snakemake rules planned, DVC stages out of date, an outpu
     ("drift/analyse.py", {"drift_report"}, {"drift"}, "results/drift/fits.csv"),
     ("tool/model.py", {"tool_train", "tool_model_report"}, {"tool_models"},
      "results/tool_normal/models/full/best.pt"),
-    ("tool/ingest.py", TOOL_DATA_ON, {"tool_data"}, "results/tool/shards/sim-smoke/paper_knife_p00_normal00.parquet"),
-    ("volume/simulate.py", VOLUME_ALL, {"simulate_volume", "simulate_drift"},
+    # the tool models' provenance records the ingest code: the report re-runs (not the trainings)
+    ("tool/ingest.py", TOOL_DATA_ON, {"tool_data", "tool_models"},
+     "results/tool/shards/sim-smoke/paper_knife_p00_normal00.parquet"),
+    ("volume/simulate.py", VOLUME_ALL, {"simulate_volume", "simulate_drift", "volume", "drift"},
      "raw/volume/sim-smoke/v000_main_l00.bag"),
     ("papillarray.py", VOLUME_ALL, {"simulate_volume", "simulate_drift", "volume", "drift"},
      "results/drift/shards/sim-smoke/loaded_t00.parquet"),

@@ -148,20 +148,32 @@ DRIFT_TARGETS = [f"{DRIFT}/metrics.json", f"{DRIFT}/provenance.json", f"{DRIFT}/
                  f"{DRIFT}/figures/drift_curves.png"]
 
 
-def provenance_args(scene):
-    """`--provenance-stages ... --sessions ...` of a scene's report: the CLI stages that make its
-    numbers (the simulator's too when a session is simulated) and its raw sessions, in which
-    provenance.json records their code, parameters and content."""
+def provenance_stages(scene):
+    """The CLI stages that make a scene's numbers (the simulator's too when a session is
+    simulated) and the scene's raw session folders."""
     stages_of = {"volume": ["cmd_ingest", "cmd_dataset", "cmd_split", "cmd_train", "cmd_gridsearch", "cmd_baseline",
-                         "cmd_report_volume"],
-              "drift": ["cmd_ingest", "cmd_report_drift"],
-              "tool": ["cmd_ingest_tool", "cmd_tool_dataset", "cmd_tool_split", "cmd_tool_train", "cmd_tool_report"]}
+                            "cmd_report_volume"],
+                 "drift": ["cmd_ingest", "cmd_report_drift"],
+                 "tool": ["cmd_ingest_tool", "cmd_tool_dataset", "cmd_tool_split", "cmd_tool_train", "cmd_tool_report"]}
     kind = scene if scene in ("volume", "drift") else "tool"
     sessions = [DRIFT_SESSION] if kind == "drift" else P[f"{kind}_sessions"]
     simulator = {"volume": "cmd_simulate_volume", "drift": "cmd_simulate_drift", "tool": "cmd_simulate_tool"}[kind]
     stages = ([simulator] if any(is_simulated(s) for s in sessions) else []) + stages_of[kind]
-    dirs = [f"raw/{kind}/{s}" for s in sessions]
+    return stages, [f"raw/{kind}/{s}" for s in sessions]
+
+
+def provenance_args(scene):
+    """`--provenance-stages ... --sessions ...`: provenance.json records their code, parameters
+    and content."""
+    stages, dirs = provenance_stages(scene)
     return "--provenance-stages " + " ".join(stages) + " --sessions " + " ".join(shlex.quote(d) for d in dirs)
+
+
+def provenance_inputs(scene):
+    """The code and parameter stamps of every stage provenance.json describes: inputs of the
+    report, so the record is rewritten whenever what it records changes."""
+    stages, _ = provenance_stages(scene)
+    return sorted({f for s in stages for f in stage_code(s)}) + [f"{PARAM_STAMPS}/{s}.json" for s in stages]
 
 
 def tool_trials(session):

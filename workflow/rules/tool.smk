@@ -192,6 +192,7 @@ rule tool_model_report:
         code=stage_code("cmd_tool_report"),
         params=param_stamp("cmd_tool_report", "tool_sessions", "tool_train.split", "tool_train.depth",
                            "tool_train.image_size", "tool_train.sweep", "tool_train.loto"),
+        provenance=lambda w: provenance_inputs(w.scene),
     output:
         metrics=reported(["results/{scene}/metrics.json"], "{scene}")[0],
         provenance="results/{scene}/provenance.json",

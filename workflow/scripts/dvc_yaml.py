@@ -135,12 +135,15 @@ def generate(params: dict) -> str:
         deps, code, rule_files, keys = set(), set(), set(ALWAYS_RULE_FILES), {"scale"}
         for j in own:
             rule_files.add(str(Path(j.rule.snakefile).resolve().relative_to(Path.cwd().resolve())))
-            stamps = [str(f) for f in j.input if str(f).startswith(STAMPS + "/")]
-            for stamp in map(lambda f: json.loads(Path(f).read_text()), stamps):
-                expected = set(codedeps.stage_files(stamp["stage"], Path.cwd()))
-                listed = {str(f) for f in j.input if str(f).endswith(".py")}
-                if listed != expected:
-                    raise SystemExit(f"rule {j.rule.name}: its code inputs are not the closure of {stamp['stage']}")
+            # a rule's stamps name the CLI stages whose code and parameters it depends on (its own,
+            # and for a report those its provenance records): its code inputs must be their closure
+            stamps = [json.loads(Path(f).read_text()) for f in {str(f) for f in j.input}
+                      if f.startswith(STAMPS + "/")]
+            expected = {f for stamp in stamps for f in codedeps.stage_files(stamp["stage"], Path.cwd())}
+            if {str(f) for f in j.input if str(f).endswith(".py")} != expected:
+                raise SystemExit(f"rule {j.rule.name}: its code inputs are not the closure of the stages "
+                                 f"{sorted(s['stage'] for s in stamps)}")
+            for stamp in stamps:
                 keys.update(stamp["declared"] + stamp["graph"])
             for f in map(str, j.input):
                 if f.startswith(STAMPS + "/"):
