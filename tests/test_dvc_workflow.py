@@ -63,7 +63,7 @@ def tracked_files(wd: Path) -> dict[str, bytes]:
     """Every file under raw/ and results/ (the logs and the resume checkpoints last.pt are not
     artefacts: not tracked, not shared)."""
     return {str(p.relative_to(wd)): p.read_bytes() for top in ("raw", "results") for p in sorted((wd / top).rglob("*"))
-            if p.is_file() and not str(p.relative_to(wd)).startswith("results/logs/")
+            if p.is_file() and not str(p.relative_to(wd)).startswith(("results/logs/", "results/params/"))
             and p.name not in (".gitignore", "README.md", "last.pt") and p.suffix != ".dvc"}   # last.pt: .dvcignore
 
 
@@ -123,7 +123,11 @@ def take_in_session(repo: dict, scene: str, session: str, simulate_flags: list[s
     out = dvc_out(wd, "repro")
     taken = {"out": out, "diff": json.loads(dvc(wd, "metrics", "diff", "--json").stdout),
              "diff_md": dvc(wd, "metrics", "diff", "--md").stdout}
-    git(wd, "add", "params.yaml", "dvc.lock", f"raw/{scene}/{session}.dvc", f"raw/{scene}/.gitignore", *metrics)
+    # each scene's metrics travel with its provenance and run times, and the rules' parameter stamps
+    records = [str(Path(m).with_name(n)) for m in metrics for n in ("metrics.json", "provenance.json", "runtime.json")
+               if (wd / Path(m).with_name(n)).exists()]
+    git(wd, "add", "params.yaml", "dvc.lock", f"raw/{scene}/{session}.dvc", f"raw/{scene}/.gitignore", *records,
+        "results/params")
     git(wd, "commit", "-q", "-m", f"new {scene} session {session}")
     dvc(wd, "push")
     return taken
@@ -156,7 +160,9 @@ def test_new_session_reruns_only_the_volume_stage_and_ingests_only_new_bags(repo
     assert len(list((wd / f"results/volume/shards/{NEW}").glob("*.parquet"))) == new_session["n_new"]
     # the metrics diff against the last commit: the volume scene changed, nothing else
     diff = new_session["diff"]
-    assert set(diff) == {"results/volume/metrics.json"}, diff
+    assert set(diff) == {"results/volume/metrics.json", "results/volume/provenance.json"}, diff
+    # provenance says why: the new session's content hash appears
+    assert f"sessions.raw/volume/{NEW}" in diff["results/volume/provenance.json"], diff
     changed = diff["results/volume/metrics.json"]
     assert "r2.fy_fz.mean" in changed and changed["r2.fy_fz.mean"]["old"] != changed["r2.fy_fz.mean"]["new"]
     assert "r2.fy_fz.mean" in new_session["diff_md"] and "HEAD" in new_session["diff_md"]
@@ -192,7 +198,8 @@ def test_new_tool_session_reruns_only_the_tool_stages_and_ingests_only_new_trial
     assert len(list((wd / f"results/tool/shards/{NEW_TOOL}").glob("*.parquet"))) == new_tool_session["n_new"]
     # the metrics diff against the last commit: both tool scenes changed, nothing else
     diff = new_tool_session["diff"]
-    assert set(diff) == {"results/tool_normal/metrics.json", "results/tool_shear/metrics.json"}, diff
+    assert set(diff) == {f"results/{s}/{f}" for s in ("tool_normal", "tool_shear")
+                         for f in ("metrics.json", "provenance.json")}, diff
     assert any(k.startswith("full.") for k in diff["results/tool_normal/metrics.json"]), diff
     assert "up to date" in dvc(wd, "status").stdout.lower()
 
@@ -216,7 +223,7 @@ def test_new_drift_session_reruns_only_the_drift_stage(repo, new_drift_session):
     assert counts["drift_report"] == 1 and "simulate_drift" not in counts
     assert len(list((wd / f"results/drift/shards/{NEW_DRIFT}").glob("*.parquet"))) == new_drift_session["n_new"]
     diff = new_drift_session["diff"]
-    assert set(diff) == {"results/drift/metrics.json"}, diff
+    assert set(diff) == {"results/drift/metrics.json", "results/drift/provenance.json"}, diff
     assert any(k.startswith("drift_30min_n") for k in diff["results/drift/metrics.json"]), diff
     assert "up to date" in dvc(wd, "status").stdout.lower()
 

@@ -148,17 +148,18 @@ DRIFT_TARGETS = [f"{DRIFT}/metrics.json", f"{DRIFT}/provenance.json", f"{DRIFT}/
                  f"{DRIFT}/figures/drift_curves.png"]
 
 
-def provenance_stages(scene):
+def provenance_stages(scene, simulator="if simulated"):
     """The CLI stages that make a scene's numbers (the simulator's too when a session is
-    simulated) and the scene's raw session folders."""
+    simulated, or with simulator="always") and the scene's raw session folders."""
     stages_of = {"volume": ["cmd_ingest", "cmd_dataset", "cmd_split", "cmd_train", "cmd_gridsearch", "cmd_baseline",
                             "cmd_report_volume"],
                  "drift": ["cmd_ingest", "cmd_report_drift"],
                  "tool": ["cmd_ingest_tool", "cmd_tool_dataset", "cmd_tool_split", "cmd_tool_train", "cmd_tool_report"]}
     kind = scene if scene in ("volume", "drift") else "tool"
     sessions = [DRIFT_SESSION] if kind == "drift" else P[f"{kind}_sessions"]
-    simulator = {"volume": "cmd_simulate_volume", "drift": "cmd_simulate_drift", "tool": "cmd_simulate_tool"}[kind]
-    stages = ([simulator] if any(is_simulated(s) for s in sessions) else []) + stages_of[kind]
+    simulator_of = {"volume": "cmd_simulate_volume", "drift": "cmd_simulate_drift", "tool": "cmd_simulate_tool"}
+    simulated = simulator == "always" or any(is_simulated(s) for s in sessions)
+    stages = ([simulator_of[kind]] if simulated else []) + stages_of[kind]
     return stages, [f"raw/{kind}/{s}" for s in sessions]
 
 
@@ -170,9 +171,11 @@ def provenance_args(scene):
 
 
 def provenance_inputs(scene):
-    """The code and parameter stamps of every stage provenance.json describes: inputs of the
-    report, so the record is rewritten whenever what it records changes."""
-    stages, _ = provenance_stages(scene)
+    """The code and parameter stamps of every stage provenance.json can describe: inputs of the
+    report, so the record is rewritten whenever what it records changes. The simulator's are
+    inputs whether or not a session is simulated, so that the graph (and dvc.yaml) does not
+    change with the kind of session named in params.yaml."""
+    stages, _ = provenance_stages(scene, simulator="always")
     return sorted({f for s in stages for f in stage_code(s)}) + [f"{PARAM_STAMPS}/{s}.json" for s in stages]
 
 
