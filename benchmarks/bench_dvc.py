@@ -63,10 +63,13 @@ def setup(wd: Path) -> float:
         if (REPO / "results" / scene / "metrics.json").is_file():
             shutil.copytree(REPO / "results" / scene, wd / "results" / scene,
                             ignore=shutil.ignore_patterns("last.pt"))
+    # the rules' parameter stamps, with their times (older than the results they made)
+    if (REPO / "results/params").is_dir():
+        shutil.copytree(REPO / "results/params", wd / "results/params")
     # Snakemake's records of how each output was made (rule, params, input checksums): without
     # them the copy is a fresh clone, and the outputs DVC re-copies from its cache while committing
-    # tool_data (new mtimes) would look newer than the models and re-train them (README: after a
-    # `dvc pull`, `snakemake --touch` once)
+    # tool_data (new mtimes) would look newer than the models and re-train them (`make pull`
+    # marks pulled results current for the same reason)
     if (REPO / ".snakemake/metadata").is_dir():
         shutil.copytree(REPO / ".snakemake/metadata", wd / ".snakemake/metadata")
     sh(["git", "init", "-q"], wd)
