@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -112,9 +113,8 @@ def test_changing_a_model_parameter_reruns_only_what_depends_on_it(smoke_run: Pa
         out = snakemake(smoke_run, "-n", "--config", "scale=smoke").stdout
     finally:
         params.write_text(original)
-    assert "volume_baseline" in out and "volume_report" in out
-    for rule in ("simulate_volume", "ingest_papillarray", "volume_train", "volume_dataset", "drift_report"):
-        assert rule not in out, rule
+    planned = set(re.findall(r"^(?:local)?rule (\w+):$", out, flags=re.M))   # job headers, not file lists
+    assert planned == {"volume_baseline", "volume_report"}, planned
 
 
 def test_a_scene_pulls_in_only_its_rules(tmp_path: Path):

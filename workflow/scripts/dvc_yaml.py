@@ -171,7 +171,9 @@ def generate(params: dict) -> str:
         if metrics:
             stage["metrics"] = metrics
         doc["stages"][name] = stage
-        plots += sorted(dvc_path(f) for f, s in output_stage.items() if s == name and f.endswith(".png"))
+        # the figures of a scene (a session's QC figures are outs, not plots: their names change with sessions)
+        plots += sorted(dvc_path(f) for f, s in output_stage.items()
+                        if s == name and f.endswith(".png") and "/figures/" in f)
     doc["plots"] = plots
     out = io.StringIO()
     out.write(HEADER)
