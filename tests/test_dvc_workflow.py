@@ -354,7 +354,7 @@ EDITS = [   # (module, snakemake rules planned, DVC stages out of date, an outpu
     ("volume/simulate.py", VOLUME_ALL, {"simulate_volume", "simulate_drift", "volume", "drift"},
      "raw/volume/sim-smoke/v000_main_l00.bag"),
     ("papillarray.py", VOLUME_ALL, {"simulate_volume", "simulate_drift", "volume", "drift"},
-     "results/drift/shards/sim-smoke/loaded_t00.parquet"),
+     "results/volume/shards/sim-smoke/v000_main_l00.parquet"),
 ]
 
 
