@@ -62,6 +62,14 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_run: Path):
     assert set(m["unseen_ml"]) == {"75", "125"}
     # even the smoke scale separates the methods: the MLP with Fy beats the algebraic baseline
     assert m["r2"]["fy_fz"]["mean"] > m["r2"]["baseline"]["mean"] + 0.1
+    # Table 1's intervals: around each mean, and the paired best-MLP-minus-baseline difference
+    for method, (low, high) in m["r2_ci95"].items():
+        assert low < m["r2"][method]["mean"] < high, method
+    diff = m["best_minus_baseline"]
+    assert diff["modality"] == m["best_modality"] and len(diff["per_fold"]) == len(m["r2_folds"]["baseline"])
+    assert diff["ci95"][0] < diff["mean"] < diff["ci95"][1]
+    assert diff["beats_baseline"] == (diff["ci95"][0] > 0)
+    assert "paired difference" in (wd / "results/volume/tables/table1_r2.md").read_text()
     for table in ("table1_r2", "table2_volumes", "unseen_volumes", "runtime", "grid_search"):
         assert (wd / f"results/volume/tables/{table}.csv").stat().st_size > 0
         assert (wd / f"results/volume/tables/{table}.md").read_text().count("|") > 10

@@ -247,7 +247,8 @@ def cmd_baseline(args) -> None:
 
 def cmd_report_volume(args) -> None:
     from tactilepipe.volume.report import build_report
-    p = _params(args, "scale", "volume_sessions", "mlp.modalities", "mlp.grid.modality", "mlp.grid.inner_folds")
+    p = _params(args, "scale", "volume_sessions", "mlp.modalities", "mlp.grid.modality", "mlp.grid.inner_folds",
+                "folds.train_lifts_per_volume", "folds.test_lifts_per_volume")
     build_report(Path(args.in_dir), p, Path(args.raw_root), Path(args.shard_root))
     _write_provenance(args, Path(args.in_dir))
 

@@ -23,15 +23,17 @@ def label(method: str) -> str:
 def r2_bars(r2: dict, out: Path) -> None:
     methods = list(r2)
     means = [r2[m]["mean"] for m in methods]
-    stds = [r2[m]["std"] for m in methods]
+    # error bars: the 95 % interval of the mean (none drawn where it is undefined)
+    low = [m_ - r2[m]["ci95"][0] if np.isfinite(r2[m]["ci95"][0]) else 0.0 for m, m_ in zip(methods, means)]
+    high = [r2[m]["ci95"][1] - m_ if np.isfinite(r2[m]["ci95"][1]) else 0.0 for m, m_ in zip(methods, means)]
     fig, ax = figure(4.8, 3.2)
     colors = ["#4C72B0" if m != "baseline" else "#999999" for m in methods]
-    bars = ax.bar(range(len(methods)), means, yerr=stds, capsize=4, color=colors)
+    bars = ax.bar(range(len(methods)), means, yerr=[low, high], capsize=4, color=colors)
     for bar, mean in zip(bars, means):
         ax.annotate(f"{mean:.3f}", (bar.get_x() + bar.get_width() / 2, max(mean, 0)), ha="center",
                     va="bottom", fontsize=8, xytext=(0, 3), textcoords="offset points")
     ax.set_xticks(range(len(methods)), [label(m) for m in methods])
-    ax.set_ylabel("R² on test lifts (mean ± std over folds)")
+    ax.set_ylabel("R² on test lifts (mean, 95 % interval)")
     ax.set_ylim(min(0.0, min(means) - 0.1), 1.08)
     ax.set_title("Volume regression by input modality")
     save_figure(out, fig)

@@ -10,18 +10,28 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from tactilepipe.atomic import write_json
+from tactilepipe.intervals import interval, paired_difference
 from tactilepipe.metrics import R2_CONSTANT, format_metric
 from tactilepipe.tables import write_table
 from tactilepipe.volume import figures
 
 
-def _summary(folds: pd.DataFrame) -> dict:
-    """Mean and std of R² over the folds where it is defined, and how many folds it is not."""
-    r2 = folds["r2"].to_numpy(np.float64)
+def _summary(folds: pd.DataFrame, test_train_ratio: float) -> dict:
+    """Mean and std of R² over the folds where it is defined (the std as study 001 reports it,
+    over the folds, ddof 0), the 95 % interval of the mean (corrected for the folds' shared
+    training data), and how many folds have no R²."""
+    r2 = folds.sort_values("fold")["r2"].to_numpy(np.float64)
     ok = np.isfinite(r2)
+    ci = interval(r2, test_train_ratio=test_train_ratio)
     return {"mean": float(r2[ok].mean()) if ok.any() else float("nan"),
             "std": float(r2[ok].std()) if ok.any() else float("nan"),
+            "ci95": [ci["low"], ci["high"]],
             "folds": [float(v) for v in r2], "undefined_folds": int((~ok).sum())}
+
+
+def _interval_text(s: dict) -> str:
+    low, high = s["ci95"]
+    return f"[{format_metric(low)}, {format_metric(high)}]" if np.isfinite(low) else "undefined (under 2 folds)"
 
 
 def _r2_text(s: dict) -> str:
@@ -62,8 +72,11 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
     modalities = list(p["mlp"]["modalities"])
     fold_tables = {m: pd.read_csv(res / "mlp" / m / "folds.csv") for m in modalities}
     fold_tables["baseline"] = pd.read_csv(res / "baseline" / "folds.csv")
-    r2 = {m: _summary(t) for m, t in fold_tables.items()}
+    ratio = p["folds"]["test_lifts_per_volume"] / p["folds"]["train_lifts_per_volume"]
+    r2 = {m: _summary(t, ratio) for m, t in fold_tables.items()}
     best = max(modalities, key=lambda m: r2[m]["mean"] if np.isfinite(r2[m]["mean"]) else -np.inf)
+    # the best MLP against the baseline, fold by fold (same test lifts): the difference's interval
+    best_vs_baseline = paired_difference(r2[best]["folds"], r2["baseline"]["folds"], test_train_ratio=ratio)
     mu = json.loads((res / "baseline" / "mu.json").read_text())
     mu_edge = [o for o in mu["optima"] if o.get("on_edge")]
     mu_notes = [o["note"] for o in mu["optima"] if o.get("note")]
@@ -77,7 +90,17 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
         return text
 
     table1 = pd.DataFrame([{"method": method_label(m), "R² (mean ± std)": _r2_text(r2[m]),
-                            "r2_mean": r2[m]["mean"], "r2_std": r2[m]["std"]} for m in r2])
+                            "95 % interval": _interval_text(r2[m]),
+                            "r2_mean": r2[m]["mean"], "r2_std": r2[m]["std"],
+                            "ci95_low": r2[m]["ci95"][0], "ci95_high": r2[m]["ci95"][1]} for m in r2])
+    d = best_vs_baseline
+    table1 = pd.concat([table1, pd.DataFrame([{
+        "method": f"paired difference: MLP {best} − baseline",
+        "R² (mean ± std)": f"{format_metric(d['mean'])} ± {format_metric(d['std'])} (std ddof 1)",
+        "95 % interval": f"[{format_metric(d['low'])}, {format_metric(d['high'])}]"
+                         + (" excludes 0" if d["excludes_zero"] else " includes 0"),
+        "r2_mean": d["mean"], "r2_std": d["std"], "ci95_low": d["low"], "ci95_high": d["high"]}])],
+        ignore_index=True)
     runtime = pd.DataFrame([{"method": m, "r2_mean": r2[m]["mean"], "r2_std": r2[m]["std"],
                              "fit_s": float(t["fit_s"].mean()),
                              "predict_us_per_sample": float(t["predict_us_per_sample"].mean()),
@@ -94,7 +117,8 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
     unseen_table["abs_error_ml"] = (unseen_table["estimated_ml"] - unseen_table["true_ml"]).abs()
 
     tables = res / "tables"
-    write_table(table1, tables / "table1_r2", "Table 1: R² on test lifts (mean ± std over folds)")
+    write_table(table1, tables / "table1_r2", "Table 1: R² on test lifts (mean ± std over folds; 95 % "
+                "interval of the mean, t with the resampled-folds correction)")
     write_table(table2, tables / "table2_volumes", f"Table 2: true vs estimated volume, MLP {best}", "{:.2f}")
     write_table(unseen_table, tables / "unseen_volumes", f"Unseen volumes, MLP {best}", "{:.2f}")
     write_table(runtime, tables / "runtime", "Error against run time (fit per fold, predict per sample)")
@@ -120,6 +144,12 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
     metrics = {
         "r2": {m: {"mean": v["mean"], "std": v["std"]} for m, v in r2.items()},
         "r2_folds": {m: v["folds"] for m, v in r2.items()},
+        "r2_ci95": {m: v["ci95"] for m, v in r2.items()},
+        "best_minus_baseline": {"modality": best, "mean": best_vs_baseline["mean"],
+                                "ci95": [best_vs_baseline["low"], best_vs_baseline["high"]],
+                                "per_fold": best_vs_baseline["per_draw"],
+                                "beats_baseline": bool(best_vs_baseline["excludes_zero"]
+                                                       and best_vs_baseline["mean"] > 0)},
         "mu_star": mu["mu_star"],
         "mu_optimum_on_edge": bool(mu_edge),
         "mu_warnings": mu_notes,
