@@ -70,6 +70,7 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_run: Path):
     assert diff["ci95"][0] < diff["mean"] < diff["ci95"][1]
     assert diff["beats_baseline"] == (diff["ci95"][0] > 0)
     assert "paired difference" in (wd / "results/volume/tables/table1_r2.md").read_text()
+    assert m["modality_ranking"].split()[::2] == m["modality_order"]
     for table in ("table1_r2", "table2_volumes", "unseen_volumes", "runtime", "grid_search"):
         assert (wd / f"results/volume/tables/{table}.csv").stat().st_size > 0
         assert (wd / f"results/volume/tables/{table}.md").read_text().count("|") > 10

@@ -10,7 +10,7 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from tactilepipe.atomic import write_json
-from tactilepipe.intervals import interval, paired_difference
+from tactilepipe.intervals import interval, paired_difference, ranking, ranking_text
 from tactilepipe.metrics import R2_CONSTANT, format_metric
 from tactilepipe.tables import write_table
 from tactilepipe.volume import figures
@@ -157,6 +157,9 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
                          for m, v in r2.items() if v["undefined_folds"]},
         "best_modality": best,
         "modality_order": ordering,
+        # neighbours in that order that the paired intervals over the folds cannot tell apart read '≈'
+        "modality_ranking": ranking_text(ranking({m: r2[m]["folds"] for m in ordering}, True,
+                                                 test_train_ratio=ratio)),
         "unseen_ml": {f"{v:g}": float(e) for v, e in zip(unseen_table["true_ml"], unseen_table["estimated_ml"])},
         "table2_ml": {f"{v:g}": float(e) for v, e in zip(table2["true_ml"], table2["estimated_ml"])},
         "grid_best": grid.iloc[0][["hidden_units", "alpha", "learning_rate", "r2_mean"]].to_dict(),
