@@ -1,6 +1,6 @@
 """How the error on unseen grasps depends on how many grasps a model trained on (a learning curve).
 
-The question behind it (issue 4): without its reference frame, does a variant lose to the
+The question behind it: without its reference frame, does a variant lose to the
 tactile-RMSE baseline because it saw too few grasps, or because a single frame cannot separate a
 re-grasp from a press? Each arm trains one variant on the workflow's trial split of a built scene
 (same validation and test trials, same label scaling, same training settings as the workflow),

@@ -1,6 +1,6 @@
 """How much a variant's test error, and its margin over the tactile-RMSE baseline, move with the trial split.
 
-The question behind it (issue 4): with 8-29 test grasps per scene, is "variant X loses to the
+The question behind it: with 8-29 test grasps per scene, is "variant X loses to the
 baseline" a property of the variant or of which grasps landed in the test set? Each arm draws the
 trial-grouped split (the workflow's ``trial`` split, stratified by tool) with another split seed,
 refits the tactile-RMSE baseline on its training trials, and trains the chosen variants with the

@@ -1,4 +1,4 @@
-"""Scale-out (issue 7): per-rule resources, the paper-scale dry run with its compute estimate,
+"""Scale-out: per-rule resources, the paper-scale dry run with its compute estimate,
 device selection and mixed precision, and the smoke scale through a real single-node SLURM
 cluster (`slurm` marker, `make test-slurm`: needs root; installs slurm-wlm and munge with apt when
 missing; not part of `make test`: 43 min on this shared 2-core machine, local run included)."""

@@ -1,4 +1,4 @@
-"""Numerical stability on stiff and extreme cases (issue 6).
+"""Numerical stability on stiff and extreme cases.
 
 Simulators: the pillar-creep integrators (stiff relaxation far below the sample period), very
 stiff pillars and gels, heavy loads, forces beyond the sensors' range (pillar travel, Nano17 ADC
