@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SNAKEMAKE := $(BIN)/snakemake --cores 2 --workflow-profile workflow/profiles/default
 
-.PHONY: run test test-slurm smoke regimes bench clean-results pull dvc.yaml
+.PHONY: run test test-slurm smoke regimes bench clean-results pull dvc.yaml study000-import study000 study000-published
 
 $(STAMP): requirements.txt pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -23,6 +23,18 @@ smoke: $(STAMP)  ## the whole pipeline at the smoke scale (about a minute)
 
 regimes: $(STAMP)  ## Table 1 under each grasp regime (results/volume_regimes; SCALE=smoke for a quick one)
 	PATH=$(CURDIR)/$(BIN):$$PATH $(SNAKEMAKE) volume_regimes $(if $(SCALE),--config scale=$(SCALE))
+
+# Study 000 on its own data (docs/reproduce_study_000.md): opt-in, in studies/000/, needs the network once
+study000-import: $(STAMP)  ## dvc import-url of study 000's archives and weights (params.yaml public_data.files)
+	cd studies/000 && $(CURDIR)/$(BIN)/python -c 'import yaml; [print(n, f["url"]) for n, f in yaml.safe_load(open("params.yaml"))["public_data"]["files"].items()]' | \
+	while read name url; do out=raw/downloads/$$name.$${url##*.}; test -f $$out.dvc || \
+	PATH=$(CURDIR)/$(BIN):$$PATH dvc import-url "$$url" $$out || exit 1; done
+
+study000: $(STAMP)  ## unpack, ingest, train the full model under both protocols, table beside the paper (GPU: paper scale)
+	cd studies/000 && PATH=$(CURDIR)/$(BIN):$$PATH dvc repro protocols
+
+study000-published: $(STAMP)  ## the published weights over every frame (contaminated: a check of preprocessing)
+	cd studies/000 && PATH=$(CURDIR)/$(BIN):$$PATH dvc repro published
 
 test: $(STAMP)  ## the whole test suite (unit + smoke-scale integration through real Snakemake)
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest
