@@ -26,7 +26,7 @@ regimes: $(STAMP)  ## Table 1 under each grasp regime (results/volume_regimes; S
 
 # Study 000 on its own data (docs/reproduce_study_000.md): opt-in, in studies/000/, needs the network once
 study000-import: $(STAMP)  ## dvc import-url of study 000's archives and weights (params.yaml public_data.files)
-	cd studies/000 && $(CURDIR)/$(BIN)/python -c 'import yaml; [print(n, f["url"]) for n, f in yaml.safe_load(open("params.yaml"))["public_data"]["files"].items()]' | \
+	mkdir -p studies/000/raw/downloads && cd studies/000 && $(CURDIR)/$(BIN)/python -c 'import yaml; [print(n, f["url"]) for n, f in yaml.safe_load(open("params.yaml"))["public_data"]["files"].items()]' | \
 	while read name url; do out=raw/downloads/$$name.$${url##*.}; test -f $$out.dvc || \
 	PATH=$(CURDIR)/$(BIN):$$PATH dvc import-url "$$url" $$out || exit 1; done
 

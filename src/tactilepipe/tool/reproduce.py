@@ -76,6 +76,11 @@ def _paper_row(paper: dict) -> dict:
             "mae_n": paper["mae_n"], "rmse_n": None, "r2": paper["r2"]}
 
 
+def _whole_counts(table: pd.DataFrame) -> pd.DataFrame:
+    table["n"] = pd.Series([None if pd.isna(v) else int(v) for v in table["n"]], dtype=object)
+    return table
+
+
 def protocol_table(evals: dict[str, Path], paper: dict, out_dir: Path) -> pd.DataFrame:
     """protocols.csv/.md and metrics.json: one row per run of PROTOCOLS, then the paper's."""
     rows = []
@@ -83,7 +88,7 @@ def protocol_table(evals: dict[str, Path], paper: dict, out_dir: Path) -> pd.Dat
         e = json.loads(Path(path).read_text())
         rows.append({"protocol": PROTOCOLS[run], "split": e["split"], "leaky": e["split"] in ("frame", "public_frame"),
                      "n": e["n"], "mae_n": e["mae"], "rmse_n": e["rmse"], "r2": e["r2"]})
-    table = pd.DataFrame(rows + [_paper_row(paper)])
+    table = _whole_counts(pd.DataFrame(rows + [_paper_row(paper)]))
     write_table(table, out_dir / "protocols", "Study 000, full model, normal force: our run under two protocols "
                                               "beside the paper (metrics on the full set of test predictions)")
     write_json(out_dir / "metrics.json", {r["split"]: {k: r[k] for k in ("n", "mae_n", "rmse_n", "r2")}
@@ -96,6 +101,6 @@ def published_table(eval_path: Path, paper: dict, out_dir: Path) -> pd.DataFrame
     e = json.loads(Path(eval_path).read_text())
     row = {"protocol": "published weights over every frame (contaminated)", "split": "none: every frame",
            "leaky": True, "n": e["n"], "mae_n": e["mae"], "rmse_n": e["rmse"], "r2": e["r2"]}
-    table = pd.DataFrame([row, _paper_row(paper)])
+    table = _whole_counts(pd.DataFrame([row, _paper_row(paper)]))
     write_table(table, out_dir / "published", f"Published weights of study 000 over every frame. {CONTAMINATED}")
     return table
