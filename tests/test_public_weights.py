@@ -216,3 +216,29 @@ def test_missing_unexpected_and_misshaped_keys_are_named(tmp_path):
     torch.save({"weights": 1}, tmp_path / "other.pth")
     with pytest.raises(InputError, match="other.pth.*not a tool-model checkpoint"):
         load_model(tmp_path / "other.pth")
+
+
+def test_predict_streams_a_public_checkpoint_and_asks_for_its_force_range(tmp_path):
+    import io
+
+    import numpy as np
+
+    from tactilepipe.config import load_params
+    from tactilepipe.tool.predict import stream_predictions
+    from tactilepipe.tool.public_layout import write_public_trial
+    from test_workflow import REPO
+    rng = np.random.default_rng(0)
+    frames = [rng.integers(60, 200, (48, 64, 3), dtype=np.uint8) for _ in range(3)]
+    trial = write_public_trial(tmp_path, "t0", frames, frames[::-1], [0.5, 3.0, 1.0], "normal")
+    (tmp_path / "trials.csv").write_text("trial,tool,orientation_deg,insertion_mm\nt0,knife,5,10\n")
+    torch.manual_seed(0)
+    ckpt = tmp_path / "best_model_normal.pth"
+    torch.save(pw.to_public(build_model("full", 18, 8, gam_channel_gate="none").state_dict()), ckpt)
+    p = load_params(REPO / "params.yaml", {"scale": "smoke"})
+    with pytest.raises(InputError, match="best_model_normal.pth.*--label-range"):
+        stream_predictions(ckpt, trial, "public", p)
+    out = io.StringIO()
+    summary = stream_predictions(ckpt, trial, "public", p, out=out, label_range=(0.0, 30.0))
+    lines = out.getvalue().splitlines()
+    assert summary["pairs"] == 3 and lines[0] == "pair,t_s,prediction_n,latency_ms" and len(lines) == 5
+    assert all(np.isfinite(float(line.split(",")[2])) for line in lines[1:4])

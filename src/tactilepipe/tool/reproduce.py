@@ -29,6 +29,7 @@ from tactilepipe.tool.loader import ToolFrames
 from tactilepipe.tool.run_model import LABELS
 from tactilepipe.tool.splits import label_stats
 
+PUBLIC_IMAGE_SIZE = 224     # the public code resizes every frame to 224 x 224
 PROTOCOLS = {   # run (results/<scene>/models/<run>) -> how the table names it
     "full_public_frame": "frame-level 70/15/15 split of the public code (leaky: the paper's protocol)",
     "full_trial": "whole trials per split (ours: no frame of a test trial is seen in training)",
@@ -67,6 +68,9 @@ def evaluate_checkpoint(checkpoint: Path, data_dir: Path, scene: str, out_dir: P
               "label_stats": stats, "contaminated": bool(contaminated)}
     if contaminated:
         result["note"] = CONTAMINATED
+    if meta["source"] == "public" and meta["image_size"] != PUBLIC_IMAGE_SIZE:
+        result["warning"] = (f"the public weights were trained on {PUBLIC_IMAGE_SIZE} px inputs, run here at "
+                             f"{meta['image_size']} px (tool_ingest.image_size): use the paper scale")
     write_json(out_dir / "eval.json", result)
     return result
 
