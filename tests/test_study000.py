@@ -150,6 +150,8 @@ def test_import_unpack_ingest_train_and_published_check_run_through_dvc_repro(pr
     assert not (project / "results/tool_normal").exists() and not (project / "raw/tool").exists()
     proc = dvc(study, "status", "protocols", "published")
     assert "changed" not in proc.stdout, proc.stdout
+    # studies/000 is a DVC project of its own: the project's stages, status and pushes never see it
+    assert "unpack_normal" not in dvc(project, "stage", "list").stdout
 
 
 def test_a_wrong_checksum_is_refused_naming_the_file(project):
