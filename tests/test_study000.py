@@ -25,7 +25,7 @@ from tactilepipe.errors import InputError
 from tactilepipe.tool import public_archive as pa
 from tactilepipe.tool.importers import list_trials
 from test_dvc_workflow import dvc, git
-from test_workflow import REPO, copy_project
+from test_workflow import BIN, REPO, copy_project, run
 
 STUDY = "studies/000"
 
@@ -138,6 +138,15 @@ def test_import_unpack_ingest_train_and_published_check_run_through_dvc_repro(pr
         e = json.loads((study / f"results/tool_normal/models/full_{split}/eval.json").read_text())
         assert e["split"] == split and metrics[split]["n"] == e["n"] == len(json.loads(
             (study / f"results/tool_normal/splits/{split}.json").read_text())["test"])
+    # tool-evaluate on our own checkpoint gives the training run's test metrics again
+    ours = study / "results/tool_normal/models/full_trial"
+    run([str(BIN / "tactilepipe"), "tool-evaluate", "--params", "params.yaml", "--checkpoint", str(ours / "best.pt"),
+         "--scene", "tool_normal", "--data-dir", "results/tool_normal/data", "--split",
+         "results/tool_normal/splits/trial.json", "--out-dir", str(project / "again")], study)
+    again, trained = (json.loads((d / "eval.json").read_text()) for d in (project / "again", ours))
+    assert again["source"] == "tactilepipe" and not again["contaminated"]
+    assert (again["n"], again["mae"], again["r2"]) == pytest.approx((trained["n"], trained["mae"], trained["r2"]),
+                                                                    rel=1e-6)
     table = (study / "results/study000/protocols.md").read_text()
     assert "0.5964" in table and "0.9743" in table and "leaky" in table
 
