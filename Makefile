@@ -51,7 +51,7 @@ pull: $(STAMP)  ## fetch shared results (dvc pull) and, once DVC finds them curr
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/dvc pull
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python workflow/scripts/mark_pulled.py
 
-dvc.yaml: $(STAMP)  ## regenerate dvc.yaml from the Snakemake graph (run after editing rules, stages or imports)
+dvc.yaml: $(STAMP)  ## regenerate dvc.yaml from the Snakemake graph, and studies/000/dvc.yaml (run after editing rules, stages or imports)
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python workflow/scripts/dvc_yaml.py
 
 clean-results:  ## remove generated results (raw recordings stay)

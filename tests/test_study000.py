@@ -179,6 +179,19 @@ def test_a_wrong_checksum_is_refused_naming_the_file(project):
     assert "raw/downloads/data_normal.zip: sha256" in out and "refused" in out, out[-2000:]
 
 
+def test_the_study_dvc_yaml_is_generated_with_exact_code_deps():
+    """studies/000/dvc.yaml lists the source files its stages run (no folder: byte-code caches
+    written by any import would mark the stages changed and re-run a GPU training)."""
+    proc = run([str(BIN / "python"), "workflow/scripts/dvc_yaml.py", "--check", "--study000"], REPO, check=False)
+    assert proc.returncode == 0, proc.stdout[-3000:]
+    stages = yaml.safe_load((REPO / STUDY / "dvc.yaml").read_text())["stages"]
+    for stage in stages.values():
+        assert "../../src/tactilepipe" not in stage["deps"]
+        assert all(Path(REPO / STUDY / d).resolve().is_file() for d in stage["deps"] if d.endswith(".py"))
+    assert "../../src/tactilepipe/tool/public_weights.py" in stages["published"]["deps"]
+    assert "../../src/tactilepipe/tool/train.py" not in stages["unpack_normal"]["deps"]
+
+
 # --- the archive checks on their own -----------------------------------------------------------
 
 def _tiny_archive(path: Path, members: dict[str, bytes]) -> Path:
