@@ -261,3 +261,30 @@ def test_a_template_row_names_the_trial_when_the_session_is_listed(tmp_path):
     with pytest.raises(InputError, match=r"trials.csv: no tool for 2 of 3 public trials: data_normal/t0, "
                                          r"data_normal/t2; complete their rows"):
         list_trials(session)
+
+
+def test_a_public_trial_keeps_frame_0_as_its_reference_when_its_label_is_dropped(tmp_path):
+    """As the public code: frame 0 is the zero-force reference even when it reads below 0 N and
+    is no sample; ingest stores it, the dataset uses it."""
+    import numpy as np
+
+    from tactilepipe.tool.dataset import build_tool_dataset
+    from tactilepipe.tool.importers import open_trial
+    from tactilepipe.tool.ingest import ingest_trial, preprocess
+    from tactilepipe.tool.public_layout import write_public_trial
+    rng = np.random.default_rng(1)
+    left = [rng.integers(60, 200, (48, 64, 3), dtype=np.uint8) for _ in range(6)]
+    right = [rng.integers(60, 200, (48, 64, 3), dtype=np.uint8) for _ in range(6)]
+    trial = write_public_trial(tmp_path, "t0", left, right, [-0.4, 1.0, 2.0, 3.0, 2.0, 1.0], "normal")
+    (tmp_path / "trials.csv").write_text("trial,tool,orientation_deg,insertion_mm\nt0,knife,5,10\n")
+    p = load_params(REPO / "params.yaml", {"scale": "smoke"})
+    raw = open_trial(trial, "public")
+    assert len(raw.frames["digit_left"]) == 5 and raw.drops["public: below 0 N"] == 1
+    ingest_trial(raw, tmp_path / "t0.parquet", 32, p["tool_ingest"])
+    build_tool_dataset([tmp_path / "t0.parquet"], "normal", tmp_path / "data", p["tool_sync"])
+    refs = np.load(tmp_path / "data" / "references.npy")
+    frame0 = [preprocess(np.asarray(__import__("cv2").imread(str(trial / s / "tactile_frame_0000.jpg"))), 32)
+              for s in ("tactile1", "tactile2")]
+    assert np.array_equal(refs[0, 0], frame0[0]) and np.array_equal(refs[0, 1], frame0[1])
+    frames = np.load(tmp_path / "data" / "frames.npy")
+    assert len(frames) == 5 and not np.array_equal(frames[0, 0], refs[0, 0])

@@ -134,7 +134,8 @@ def open_public_trial(trial_dir: Path) -> RawTrial:
     return RawTrial(trial=f"{session_dir.name}/{trial_dir.parent.name}-{trial_dir.name}", kind=kind,
                     frames=frames, force_host_ns=host_ns, force_n=force, source=str(trial_dir),
                     clock={"method": "public_layout_paired_by_index", "offset_s": 0.0},
-                    drops={"public: below 0 N": int(data.get("dropped", 0))}, **meta)
+                    drops={"public: below 0 N": int(data.get("dropped", 0))},
+                    reference={"digit_left": data["reference_left"], "digit_right": data["reference_right"]}, **meta)
 
 
 def open_trial(path: str | Path, fmt: str, ros_topics: dict | None = None) -> RawTrial:

@@ -69,13 +69,18 @@ def _stream(model, meta, trial, fmt, p, limit, out, torch) -> dict:
 
     ingest_size = p["tool_ingest"]["image_size"]
 
-    def prep(frames, i):
+    def prep_image(bgr):
         # the training path exactly: ingest's preprocessing at the dataset size, then the loader's
         # area downscale to the model's size (ToolFrames.resized)
-        img = preprocess(frames.load(int(i)), ingest_size)
+        img = preprocess(bgr, ingest_size)
         return img if ingest_size == size else cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
 
-    ref = [prep(left, il[0]), prep(right, ir[0])]
+    def prep(frames, i):
+        return prep_image(frames.load(int(i)))
+
+    # the zero-force reference: the format's own (public layout: frame 0), else the first pair
+    ref = ([prep_image(raw.reference["digit_left"]), prep_image(raw.reference["digit_right"])]
+           if {"digit_left", "digit_right"} <= set(raw.reference) else [prep(left, il[0]), prep(right, ir[0])])
     latencies, preds = [], []
     print("pair,t_s,prediction_n,latency_ms", file=out)
     t_start = time.perf_counter()
