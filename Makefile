@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SNAKEMAKE := $(BIN)/snakemake --cores 2 --workflow-profile workflow/profiles/default
 
-.PHONY: run test test-slurm smoke regimes bench clean-results pull dvc.yaml
+.PHONY: run test test-slurm smoke regimes bench clean-results pull dvc.yaml study000-import study000 study000-published
 
 $(STAMP): requirements.txt pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -24,6 +24,18 @@ smoke: $(STAMP)  ## the whole pipeline at the smoke scale (about a minute)
 regimes: $(STAMP)  ## Table 1 under each grasp regime (results/volume_regimes; SCALE=smoke for a quick one)
 	PATH=$(CURDIR)/$(BIN):$$PATH $(SNAKEMAKE) volume_regimes $(if $(SCALE),--config scale=$(SCALE))
 
+# Study 000 on its own data (docs/reproduce_study_000.md): opt-in, in studies/000/, needs the network once
+study000-import: $(STAMP)  ## dvc import-url of study 000's archives and weights (params.yaml public_data.files)
+	mkdir -p studies/000/raw/downloads && cd studies/000 && $(CURDIR)/$(BIN)/python -c 'import yaml; [print(n, f["url"]) for n, f in yaml.safe_load(open("params.yaml"))["public_data"]["files"].items()]' | \
+	while read name url; do out=raw/downloads/$$name.$${url##*.}; test -f $$out.dvc || \
+	PATH=$(CURDIR)/$(BIN):$$PATH dvc import-url "$$url" $$out || exit 1; done
+
+study000: $(STAMP)  ## unpack, ingest, train the full model under both protocols, table beside the paper (GPU: paper scale)
+	cd studies/000 && PATH=$(CURDIR)/$(BIN):$$PATH dvc repro protocols
+
+study000-published: $(STAMP)  ## the published weights over every frame (contaminated: a check of preprocessing)
+	cd studies/000 && PATH=$(CURDIR)/$(BIN):$$PATH dvc repro published
+
 test: $(STAMP)  ## the whole test suite (unit + smoke-scale integration through real Snakemake)
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest
 
@@ -39,7 +51,7 @@ pull: $(STAMP)  ## fetch shared results (dvc pull) and, once DVC finds them curr
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/dvc pull
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python workflow/scripts/mark_pulled.py
 
-dvc.yaml: $(STAMP)  ## regenerate dvc.yaml from the Snakemake graph (run after editing rules, stages or imports)
+dvc.yaml: $(STAMP)  ## regenerate dvc.yaml from the Snakemake graph, and studies/000/dvc.yaml (run after editing rules, stages or imports)
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python workflow/scripts/dvc_yaml.py
 
 clean-results:  ## remove generated results (raw recordings stay)

@@ -12,6 +12,7 @@ include: "workflow/rules/volume.smk"
 include: "workflow/rules/drift.smk"
 include: "workflow/rules/tool.smk"
 include: "workflow/rules/regimes.smk"
+include: "workflow/rules/study000.smk"
 
 
 rule all:

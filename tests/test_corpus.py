@@ -691,7 +691,12 @@ TRIALS_CSV_CASES = {
     "missing": (None, "missing: a public-layout session needs trials.csv", None),
     "trial_without_a_row": ("trial,tool,orientation_deg,insertion_mm\ns0,knife,5,10\n",
                             r"no tool for 1 of 1 public trials: data_normal/t0", None),
-    "empty_tool": ("trial,tool,orientation_deg,insertion_mm\nt0,,5,10\n", "must not be empty", "line 2"),
+    # a template row (tactilepipe unpack-public writes them) not filled in: the trial lacks a tool
+    "empty_tool": ("trial,tool,orientation_deg,insertion_mm\nt0,,5,10\n",
+                   r"no tool for 1 of 1 public trials: data_normal/t0; complete their rows", None),
+    "empty_pose": ("trial,tool,orientation_deg,insertion_mm\nt0,knife,,\n",
+                   r"no tool for 1 of 1 public trials: data_normal/t0", None),
+    "empty_trial": ("trial,tool,orientation_deg,insertion_mm\n,knife,5,10\n", "trial must not be empty", "line 2"),
     "trial_listed_twice": ("trial,tool,orientation_deg,insertion_mm\nt0,knife,5,10\nt0,spatula,5,10\n",
                            "trial t0 is listed again", "line 3"),
     "wrong_header": ("name,tool\nt0,knife\n", "header must hold trial,tool,orientation_deg,insertion_mm", "line 1"),

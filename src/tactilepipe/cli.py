@@ -155,7 +155,8 @@ def cmd_tool_train(args) -> None:
     from tactilepipe.tool.run_model import train_and_predict
     p = _params(args, "seed", "tool_train.lr", "tool_train.lr_schedule", "tool_train.batch_size",
                 "tool_train.max_epochs", "tool_train.patience", "tool_train.max_train_batches_per_epoch",
-                "tool_train.bn_recalibration_batches", "tool_train.device", "tool_train.amp", "tool_train.num_threads")
+                "tool_train.bn_recalibration_batches", "tool_train.device", "tool_train.amp", "tool_train.num_threads",
+                "tool_train.gam_channel_gate")
     result = train_and_predict(args.scene, Path(args.data_dir), Path(args.split), Path(args.out_dir), args.variant,
                                args.depth, args.image_size, p["tool_train"], p["seed"], progress=not args.quiet)
     print(json.dumps({k: result[k] for k in ("variant", "depth", "image_size", "mae", "rmse", "r2", "train_s",
@@ -172,7 +173,52 @@ def cmd_tool_report(args) -> None:
 def cmd_predict(args) -> None:
     from tactilepipe.tool.predict import stream_predictions
     p = _params(args, "tool_ingest.ros_topics", "tool_ingest.image_size", "predict")
-    stream_predictions(Path(args.checkpoint), Path(args.trial), args.format, p, limit=args.limit)
+    stream_predictions(Path(args.checkpoint), Path(args.trial), args.format, p, limit=args.limit,
+                       label_range=args.label_range)
+
+
+def cmd_unpack_public(args) -> None:
+    from tactilepipe.tool.public_archive import unpack, verify, write_trials_template
+    p = _params(args, "public_data.files", "public_data.session")
+    files = p["public_data"]["files"]
+    if args.name not in files:
+        raise TactilepipeError(f"--name {args.name}: not a file of params.yaml public_data.files ({sorted(files)})")
+    verify(args.archive, files[args.name]["size"], files[args.name]["sha256"])
+    session = Path(args.raw_root) / p["public_data"]["session"]
+    trials = unpack(args.archive, args.name, session)
+    added = write_trials_template(session)
+    print(json.dumps({"archive": args.archive, "session": str(session), "trials": len(trials),
+                      "trials_csv_rows_added": len(added)}))
+    if added:
+        print(f"{session / 'trials.csv'}: {len(added)} trials need a tool and pose (tool, orientation_deg, "
+              f"insertion_mm) before the scene can be built", file=sys.stderr)
+
+
+def cmd_tool_evaluate(args) -> None:
+    from tactilepipe.tool.reproduce import evaluate_checkpoint
+    p = _params(args, "tool_train.device", "public_data.files")
+    if args.expect:
+        from tactilepipe.tool.public_archive import verify
+        files = p["public_data"]["files"]
+        if args.expect not in files:
+            raise TactilepipeError(f"--expect {args.expect}: not a file of params.yaml public_data.files ({sorted(files)})")
+        verify(args.checkpoint, files[args.expect]["size"], files[args.expect]["sha256"])
+    split = None if args.all_frames else Path(args.split) if args.split else None
+    if split is None and not args.all_frames:
+        raise TactilepipeError("tool-evaluate: give --split SPLIT_JSON (its test set) or --all-frames")
+    result = evaluate_checkpoint(Path(args.checkpoint), Path(args.data_dir), args.scene, Path(args.out_dir), split,
+                                 args.contaminated, p["tool_train"]["device"])
+    print(json.dumps({k: result[k] for k in ("source", "frames", "n", "mae", "rmse", "r2", "contaminated")}))
+
+
+def cmd_study000_table(args) -> None:
+    from tactilepipe.tool.reproduce import protocol_table, published_table
+    p = _params(args, "public_data.paper")
+    paper, out = p["public_data"]["paper"], Path(args.out_dir)
+    if args.published:
+        published_table(Path(args.published), paper, out)
+    else:
+        protocol_table({Path(e).parent.name: Path(e) for e in args.evals}, paper, out)
 
 
 def cmd_dataset(args) -> None:
@@ -323,7 +369,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("tool-split", parents=[common], help="train/validation/test split of a tool dataset")
     s.add_argument("--data-dir", required=True)
-    s.add_argument("--split", choices=["frame", "trial", "loto", "lopo"], required=True)
+    s.add_argument("--split", choices=["frame", "public_frame", "trial", "loto", "lopo"], required=True)
     s.add_argument("--label", choices=["normal", "shear"], required=True)
     s.add_argument("--out", required=True)
     s.set_defaults(func=cmd_tool_split)
@@ -350,7 +396,37 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--trial", required=True, help="trial folder or bag")
     s.add_argument("--format", choices=["native", "public", "ros"], default="native")
     s.add_argument("--limit", type=int, help="stop after this many frame pairs")
+    s.add_argument("--label-range", nargs=2, type=float, metavar=("MIN_N", "MAX_N"),
+                   help="a public-code normal-force checkpoint: the force range (N) its outputs were scaled to "
+                        "(the min and max over its training data set)")
     s.set_defaults(func=cmd_predict)
+
+    s = sub.add_parser("unpack-public", parents=[common],
+                       help="check a study-000 archive's size and sha256, unpack it into a public-layout session")
+    s.add_argument("archive", help="e.g. raw/downloads/data_normal.zip")
+    s.add_argument("--name", required=True, help="its entry in params.yaml public_data.files (data_normal, data_shear)")
+    s.add_argument("--raw-root", default="raw/tool", help="the session folder public_data.session is made here")
+    s.set_defaults(func=cmd_unpack_public)
+
+    s = sub.add_parser("tool-evaluate", parents=[common],
+                       help="evaluate a checkpoint (ours or the public code's) on a tool dataset")
+    s.add_argument("--checkpoint", required=True, help="best.pt, or a public best_model_*.pth")
+    s.add_argument("--expect", metavar="NAME", help="first check the checkpoint's size and sha256 against "
+                                                   "params.yaml public_data.files.NAME")
+    s.add_argument("--scene", choices=["tool_normal", "tool_shear"], required=True)
+    s.add_argument("--data-dir", required=True)
+    s.add_argument("--split", help="split file: evaluate its test set")
+    s.add_argument("--all-frames", action="store_true", help="evaluate every frame of the data set")
+    s.add_argument("--contaminated", action="store_true",
+                   help="label the result contaminated (the weights were trained on these frames)")
+    s.add_argument("--out-dir", required=True)
+    s.set_defaults(func=cmd_tool_evaluate)
+
+    s = sub.add_parser("study000-table", parents=[common], help="study 000's protocols (or published weights) beside the paper")
+    s.add_argument("--evals", nargs="*", default=[], help="eval.json of the runs full_public_frame, full_trial")
+    s.add_argument("--published", help="eval.json of the published weights over every frame")
+    s.add_argument("--out-dir", required=True)
+    s.set_defaults(func=cmd_study000_table)
 
     s = sub.add_parser("dataset", parents=[common], help="segment the off-table phase of every lift")
     s.add_argument("--raw-root", default="raw/volume")

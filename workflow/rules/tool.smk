@@ -3,7 +3,7 @@
 # (sync, references, decoded arrays) -> splits, QC report and data figures.
 
 TOOL_TARGETS = {"tool_normal": ("normal", "normal"), "tool_shear": ("shear", "shear")}
-TOOL_SPLITS = ["frame", "trial", "loto", "lopo"]
+TOOL_SPLITS = ["frame", "trial", "loto", "lopo", "public_frame"]   # public_frame: study000.smk only
 
 
 rule simulate_tool:
@@ -150,6 +150,8 @@ def run_spec(run):
     size = tt["image_size"]
     if run == "full_loto":
         return "full", "loto", tt["depth"], size
+    if run.startswith("full_") and run[len("full_"):] in TOOL_SPLITS:   # full model on another split (study000.smk)
+        return "full", run[len("full_"):], tt["depth"], size
     for s in tt["sweep"]:
         if run == sweep_run_name(s):
             return "full", tt["split"], s["depth"], s["image_size"]

@@ -84,7 +84,10 @@ def load_trial(shard: Path, info: dict, sync: dict) -> dict:
     values, ok = interpolate_at(t_ns.astype(np.float64), f_t[order].astype(np.float64),
                                 force[["fx", "fy", "fz"]].to_numpy()[order], sync["max_gap_s"] * 1e9)
     drops["force gap"] += int((~ok).sum())
+    stored = table[table["row"] == "reference"].set_index("sensor")["png"]
+    ref_png = [stored[s] for s in SENSORS] if set(SENSORS) <= set(stored.index) else None
     return {"info": info, "t_ns": t_ns[ok], "force": values[ok], "drops": drops, "pair_every": step,
+            "ref_png": ref_png,
             "png": [by_sensor[SENSORS[0]]["png"].to_numpy()[il[ok]], by_sensor[SENSORS[1]]["png"].to_numpy()[ir[ok]]]}
 
 
@@ -126,7 +129,12 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
             normal, shear = sync["normal_sign"] * fz, np.hypot(fx, fy)
             label_mag = normal if kind == "normal" else shear
             ref_idx = reference_index(trial["t_ns"], np.abs(label_mag), sync["reference"], sync["contact_n"])
-            refs[ti] = np.median(frames[k + ref_idx], axis=0).astype(np.uint8) if len(ref_idx) > 1 else frames[k + ref_idx[0]]
+            if sync["reference"] == "first" and trial["ref_png"] is not None:
+                # the format's own zero-force frame (public layout: frame 0, whose label may be dropped)
+                refs[ti] = np.stack([_decode(p, info["source"]) for p in trial["ref_png"]])
+            else:
+                refs[ti] = np.median(frames[k + ref_idx], axis=0).astype(np.uint8) if len(ref_idx) > 1 \
+                    else frames[k + ref_idx[0]]
             t_s = (trial["t_ns"] - trial["t_ns"][0]) / 1e9
             rows.append(pd.DataFrame({
                 "trial_index": ti, "trial": info["trial"], "tool": info["tool"],

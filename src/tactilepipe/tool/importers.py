@@ -66,7 +66,9 @@ def read_trials_csv(session_dir: str | Path) -> dict[str, dict]:
 
     The public layout does not record which tool a trial used; every split by tool (and the
     report) needs it, so the file is required. A trial is named by its folder (t0) or, where
-    data_normal/ and data_shear/ reuse a name, by kind folder and name (data_normal/t0).
+    data_normal/ and data_shear/ reuse a name, by kind folder and name (data_normal/t0). Rows
+    with an empty tool or pose (the template `tactilepipe unpack-public` writes) are left out:
+    check_public_session names those trials as lacking a tool.
     """
     path = Path(session_dir) / TRIALS_CSV
     if not path.exists():
@@ -77,18 +79,22 @@ def read_trials_csv(session_dir: str | Path) -> dict[str, dict]:
     if not set(TRIALS_HEADER) <= set(reader.fieldnames):
         raise InputError(path, f"header must hold {','.join(TRIALS_HEADER)} (found {reader.fieldnames})", "line 1")
     out: dict[str, dict] = {}
+    listed: set[str] = set()
     for line, row in enumerate(reader, start=2):
+        values = {k: (row.get(k) or "").strip() for k in TRIALS_HEADER}
+        if not values["trial"]:
+            raise InputError(path, "trial must not be empty", f"line {line}")
+        if values["trial"] in listed:
+            raise InputError(path, f"trial {values['trial']} is listed again", f"line {line}")
+        listed.add(values["trial"])
+        if not all(values.values()):
+            continue                  # a template row not filled in yet: the trial lacks a tool (or pose)
         try:
-            trial, tool = row["trial"].strip(), row["tool"].strip()
-            meta = {"tool": tool, "orientation_deg": float(row["orientation_deg"]),
-                    "insertion_mm": float(row["insertion_mm"])}
-        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            meta = {"tool": values["tool"], "orientation_deg": float(values["orientation_deg"]),
+                    "insertion_mm": float(values["insertion_mm"])}
+        except ValueError as exc:
             raise InputError(path, f"expected {','.join(TRIALS_HEADER)} ({exc})", f"line {line}") from None
-        if not trial or not tool:
-            raise InputError(path, "trial and tool must not be empty", f"line {line}")
-        if trial in out:
-            raise InputError(path, f"trial {trial} is listed again", f"line {line}")
-        out[trial] = meta
+        out[values["trial"]] = meta
     return out
 
 
@@ -103,7 +109,8 @@ def check_public_session(session_dir: Path, trial_dirs: list[Path]) -> None:
     if lacking:
         shown = ", ".join(lacking[:10]) + (f" and {len(lacking) - 10} more" if len(lacking) > 10 else "")
         raise InputError(session_dir / TRIALS_CSV, f"no tool for {len(lacking)} of {len(trial_dirs)} public "
-                                                  f"trials: {shown}")
+                                                  f"trials: {shown}; complete their rows "
+                                                  f"({','.join(TRIALS_HEADER)})")
 
 
 def open_public_trial(trial_dir: Path) -> RawTrial:
@@ -127,7 +134,8 @@ def open_public_trial(trial_dir: Path) -> RawTrial:
     return RawTrial(trial=f"{session_dir.name}/{trial_dir.parent.name}-{trial_dir.name}", kind=kind,
                     frames=frames, force_host_ns=host_ns, force_n=force, source=str(trial_dir),
                     clock={"method": "public_layout_paired_by_index", "offset_s": 0.0},
-                    drops={"public: below 0 N": int(data.get("dropped", 0))}, **meta)
+                    drops={"public: below 0 N": int(data.get("dropped", 0))},
+                    reference={"digit_left": data["reference_left"], "digit_right": data["reference_right"]}, **meta)
 
 
 def open_trial(path: str | Path, fmt: str, ros_topics: dict | None = None) -> RawTrial:

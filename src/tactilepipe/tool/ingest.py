@@ -132,6 +132,21 @@ def _check_frozen(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.nd
                                                    f"|F| changes by {change:.2f} N: the camera froze")
 
 
+def _reference_rows(raw: RawTrial, size: int) -> list[tuple[str, bytes]]:
+    """(sensor, PNG) of each stored reference frame of the trial, preprocessed as its frames."""
+    out = []
+    for name, bgr in sorted(raw.reference.items()):
+        where = f"{raw.source} (reference frame of {name})"
+        check_frame(bgr, None, where, name)
+        img = preprocess(bgr, size)
+        check_exposure(img, where, name)
+        ok, buf = cv2.imencode(".png", img, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+        if not ok:
+            raise InputError(where, f"{name}: cannot PNG-encode the preprocessed reference frame")
+        out.append((name, buf.tobytes()))
+    return out
+
+
 def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, ingest: dict) -> dict:
     """Write the shard atomically; returns the trial's QC record (counts, clock offset found).
 
@@ -168,8 +183,13 @@ def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, ingest: dict
         rows_t.append(raw.frames[name].host_ns.astype(np.int64))
         rows_png += pngs
     n_frames, n_force = len(rows_png), len(force_ns)
+    refs = _reference_rows(raw, image_size)            # "reference" rows: a stored zero-force frame per sensor
+    rows_sensor += [name for name, _ in refs]
+    rows_t += [raw.frames[name].host_ns[:1].astype(np.int64) for name, _ in refs]
+    rows_png += [png for _, png in refs]
+    n_frames, kinds = len(rows_png), ["frame"] * n_frames + ["reference"] * len(refs)
     table = pa.table({
-        "row": pa.array(["frame"] * n_frames + ["force"] * n_force).dictionary_encode(),
+        "row": pa.array(kinds + ["force"] * n_force).dictionary_encode(),
         "sensor": pa.array(rows_sensor + [None] * n_force, pa.string()),
         "t_ns": pa.array(np.concatenate(rows_t + [force_ns])),
         "png": pa.array(rows_png + [None] * n_force, pa.binary()),

@@ -15,7 +15,9 @@ Output: (b,) normalised force. GAM: channel branch Linear(C->C/4)-ReLU-Linear(C/
 pixel, then sigmoid, multiplied in; spatial branch Conv7x7(C->C/4)-BN-ReLU-Conv7x7(C/4->C)-BN-sigmoid
 multiplied in. The public code has no sigmoid on the channel branch; with it absent the two gates
 in a row made the features a 4th-degree polynomial of the input and, in eval mode, they collapsed
-to ~1e-7 (measured), so we gate as the GAM paper does. Kaiming initialisation, then zero-init of
+to ~1e-7 (measured), so we gate as the GAM paper does. ``gam_channel_gate="none"`` (params.yaml
+tool_train.gam_channel_gate) builds the public flavour, which its published weights need; it
+creates the same parameters in the same order, so the default ("sigmoid") is unchanged. Kaiming initialisation, then zero-init of
 each residual block's last BN and of the output layer (see _kaiming_init).
 
 Parameter counts do not depend on the image size (the network is fully convolutional up to the
@@ -39,6 +41,7 @@ import torch
 from torch import nn
 
 MIN_IMAGE_SIZE = 8
+GAM_CHANNEL_GATES = ("sigmoid", "none")
 
 
 @dataclass(frozen=True)
@@ -120,10 +123,12 @@ class TrimmedConv2d(nn.Conv2d):
 
 
 class GAM(nn.Module):
-    """Global Attention Mechanism (both branches sigmoid-gated; see the module docstring)."""
+    """Global Attention Mechanism (spatial branch sigmoid-gated; the channel branch too unless
+    ``channel_gate`` is "none", the public code's flavour; see the module docstring)."""
 
-    def __init__(self, channels: int, rate: int = 4):
+    def __init__(self, channels: int, rate: int = 4, channel_gate: str = "sigmoid"):
         super().__init__()
+        self.channel_gate = channel_gate
         hidden = channels // rate
         self.channel = nn.Sequential(nn.Linear(channels, hidden), nn.ReLU(inplace=True), nn.Linear(hidden, channels))
         self.spatial = nn.Sequential(
@@ -132,7 +137,7 @@ class GAM(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         att = self.channel(x.permute(0, 2, 3, 1)).permute(0, 3, 1, 2)   # per pixel over channels
-        x = x * torch.sigmoid(att)
+        x = x * (torch.sigmoid(att) if self.channel_gate == "sigmoid" else att)
         return x * torch.sigmoid(self.spatial(x))
 
 
@@ -223,15 +228,18 @@ class ResNetRegressor(nn.Module):
 
 
 class ToolForceNet(nn.Module):
-    def __init__(self, variant: str, depth: int, image_size: int):
+    def __init__(self, variant: str, depth: int, image_size: int, gam_channel_gate: str = "sigmoid"):
         super().__init__()
         self.variant, self.depth, self.image_size = variant, depth, image_size
+        self.gam_channel_gate = gam_channel_gate
         spec = VARIANTS[variant]
         self.slices = spec.sensors
         self.encoders = nn.ModuleList(Encoder(b - a) for a, b in spec.sensors)
-        self.sensor_gams = nn.ModuleList(GAM(e.out_channels) if spec.gam else nn.Identity() for e in self.encoders)
+        self.sensor_gams = nn.ModuleList(GAM(e.out_channels, channel_gate=gam_channel_gate) if spec.gam
+                                         else nn.Identity() for e in self.encoders)
         fused = sum(e.out_channels for e in self.encoders)
-        self.fusion_gam = GAM(fused) if (spec.gam and len(self.encoders) > 1) else nn.Identity()
+        self.fusion_gam = (GAM(fused, channel_gate=gam_channel_gate) if (spec.gam and len(self.encoders) > 1)
+                           else nn.Identity())
         self.regressor = ResNetRegressor(fused, depth)
         f = self.regressor.out_features
         self.head = nn.Sequential(nn.Linear(f, 1024), nn.ReLU(inplace=True), nn.Linear(1024, 512),
@@ -276,15 +284,18 @@ def check_image_size(image_size: int) -> None:
                          f"(the encoder divides by 8)")
 
 
-def build_model(variant: str, depth: int, image_size: int) -> ToolForceNet:
+def build_model(variant: str, depth: int, image_size: int, gam_channel_gate: str = "sigmoid") -> ToolForceNet:
     """A freshly initialised model (no pretrained weights). ``variant`` is a key of VARIANTS,
-    ``depth`` one of 18, 34, 50, 101, ``image_size`` the side S of the square inputs."""
+    ``depth`` one of 18, 34, 50, 101, ``image_size`` the side S of the square inputs,
+    ``gam_channel_gate`` one of GAM_CHANNEL_GATES."""
+    if gam_channel_gate not in GAM_CHANNEL_GATES:
+        raise ValueError(f"unknown gam_channel_gate '{gam_channel_gate}' (one of {', '.join(GAM_CHANNEL_GATES)})")
     if variant not in VARIANTS:
         raise ValueError(f"unknown model variant '{variant}' (one of {', '.join(VARIANTS)})")
     if depth not in DEPTHS:
         raise ValueError(f"unsupported ResNet depth {depth} (one of {', '.join(map(str, DEPTHS))})")
     check_image_size(image_size)
-    return ToolForceNet(variant, depth, int(image_size))
+    return ToolForceNet(variant, depth, int(image_size), gam_channel_gate)
 
 
 def count_parameters(model: nn.Module, trainable_only: bool = False) -> int:

@@ -27,7 +27,9 @@ from tactilepipe.tool.sync import pair_frames
 
 
 def stream_predictions(checkpoint: Path, trial: Path, fmt: str, p: dict, limit: int | None = None,
-                       out=sys.stdout) -> dict:
+                       out=sys.stdout, label_range=None) -> dict:
+    """A checkpoint of the public code (best_model_*.pth) runs at the ingest size; its normal-force
+    outputs need ``label_range`` (min, max in N), which it does not record."""
     # OpenMP reads its wait policy when torch first loads it: effective when predict starts the
     # process (the CLI), not when torch was already imported by the caller
     os.environ["OMP_WAIT_POLICY"] = p["predict"]["wait_policy"].upper()
@@ -36,10 +38,22 @@ def stream_predictions(checkpoint: Path, trial: Path, fmt: str, p: dict, limit: 
     saved_threads = torch.get_num_threads()
     torch.set_num_threads(p["predict"]["num_threads"])
     try:
-        model, meta = load_model(checkpoint)
+        model, meta = load_model(checkpoint, image_size=p["tool_ingest"]["image_size"])
+        if meta["label_stats"] is None:                # a public-code checkpoint
+            meta = {**meta, "label_stats": _public_label_stats(checkpoint, meta, label_range)}
         return _stream(model, meta, trial, fmt, p, limit, out, torch)
     finally:
         torch.set_num_threads(saved_threads)       # an in-process caller keeps its own setting
+
+
+def _public_label_stats(checkpoint: Path, meta: dict, label_range) -> dict:
+    from tactilepipe.errors import InputError
+    if meta["head"] == "shear":
+        return {"min": 0.0, "max": 1.0}                 # its shear head predicts N
+    if label_range is None:
+        raise InputError(checkpoint, "a public-code normal-force checkpoint predicts force scaled to its data set's "
+                                     "range: give it with --label-range MIN_N MAX_N")
+    return {"min": float(label_range[0]), "max": float(label_range[1])}
 
 
 def _stream(model, meta, trial, fmt, p, limit, out, torch) -> dict:
@@ -55,13 +69,18 @@ def _stream(model, meta, trial, fmt, p, limit, out, torch) -> dict:
 
     ingest_size = p["tool_ingest"]["image_size"]
 
-    def prep(frames, i):
+    def prep_image(bgr):
         # the training path exactly: ingest's preprocessing at the dataset size, then the loader's
         # area downscale to the model's size (ToolFrames.resized)
-        img = preprocess(frames.load(int(i)), ingest_size)
+        img = preprocess(bgr, ingest_size)
         return img if ingest_size == size else cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
 
-    ref = [prep(left, il[0]), prep(right, ir[0])]
+    def prep(frames, i):
+        return prep_image(frames.load(int(i)))
+
+    # the zero-force reference: the format's own (public layout: frame 0), else the first pair
+    ref = ([prep_image(raw.reference["digit_left"]), prep_image(raw.reference["digit_right"])]
+           if {"digit_left", "digit_right"} <= set(raw.reference) else [prep(left, il[0]), prep(right, ir[0])])
     latencies, preds = [], []
     print("pair,t_s,prediction_n,latency_ms", file=out)
     t_start = time.perf_counter()

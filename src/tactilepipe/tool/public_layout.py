@@ -10,7 +10,8 @@ index). Normal force files hold one comma-separated line whose last field is the
 Arduino count; the label is -0.0302 * raw + 29.229 N (raw ~ 968 at 0 N) and frames whose label
 is below 0 N are dropped, as the public code does. Shear force files hold one line `fx,fy,fz`
 (N); the label is the shear magnitude sqrt(fx^2 + fy^2), Savitzky-Golay smoothed over the trial
-(window 11, order 2). The zero-force reference of a trial is its first frame.
+(window 11, order 2). The zero-force reference of a trial is its first frame, also when that
+frame's own label is dropped (as the public code does); ingest stores it in the shard.
 """
 
 from __future__ import annotations

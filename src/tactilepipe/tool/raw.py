@@ -39,3 +39,6 @@ class RawTrial:
     clock: dict = field(default_factory=dict)   # how force times were put on the host clock
     drops: dict = field(default_factory=dict)   # counted drops while importing (reason -> count)
     source: str = ""                     # path of the recording
+    reference: dict = field(default_factory=dict)  # sensor -> BGR zero-force reference frame, where the
+                                         # format fixes one apart from the frames (public layout: frame 0,
+                                         # kept even when its own label was dropped); else the first pair

@@ -28,7 +28,8 @@ def train_and_predict(scene: str, data_dir: Path, split_path: Path, out_dir: Pat
                       max_epochs=tp["max_epochs"], patience=tp["patience"], seed=seed, device=tp["device"],
                       amp=tp["amp"], num_threads=tp["num_threads"], normalise=normalise,
                       max_train_batches_per_epoch=tp["max_train_batches_per_epoch"] or None,
-                      bn_recalibration_batches=tp["bn_recalibration_batches"])
+                      bn_recalibration_batches=tp["bn_recalibration_batches"],
+                      gam_channel_gate=tp["gam_channel_gate"])
     # last.pt of an interrupted run resumes it; one made with other settings (the workflow re-runs
     # this job after a parameter change) or unreadable is set aside, and the run starts again
     stale = stale_checkpoint_reason(out_dir / "last.pt", cfg, split, data)

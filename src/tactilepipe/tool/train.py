@@ -61,6 +61,7 @@ class TrainConfig:
     channels_last: bool = True          # NHWC memory format (faster on CPU)
     bn_recalibration_batches: int = 20  # training batches that re-estimate BatchNorm statistics before
                                         # each validation (0: keep the running averages)
+    gam_channel_gate: str = "sigmoid"   # sigmoid (ours) | none (the public code's GAM channel branch)
 
     @classmethod
     def from_dict(cls, d: dict) -> "TrainConfig":
@@ -154,16 +155,15 @@ def _write_history(path: Path, history: list[dict]) -> None:
             w.writerows(history)
 
 
-def _load_checkpoint(path: Path) -> dict:
-    try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=True)
-    except FileNotFoundError:
-        raise InputError(path, "checkpoint not found") from None
-    except Exception as exc:                      # truncated or foreign file
-        raise InputError(path, f"cannot read checkpoint ({type(exc).__name__}: {exc})") from None
-    if not isinstance(ckpt, dict) or ckpt.get("format") != CHECKPOINT_FORMAT:
-        raise InputError(path, f"not a tool-model checkpoint (expected format {CHECKPOINT_FORMAT})")
-    return ckpt
+def _load_checkpoint(path: Path, raw=None) -> dict:
+    """Our checkpoint at ``path`` (``raw``: its already loaded contents)."""
+    if raw is None:
+        from tactilepipe.tool.public_weights import read_state
+        raw = read_state(path)
+    if not isinstance(raw, dict) or raw.get("format") != CHECKPOINT_FORMAT:
+        raise InputError(path, f"not a tool-model checkpoint (expected format {CHECKPOINT_FORMAT}, or the public "
+                               f"code's state dict)")
+    return raw
 
 
 def _data_fingerprint(data) -> str:
@@ -179,7 +179,8 @@ def _data_fingerprint(data) -> str:
 
 def _settings_diff(ckpt: dict, cfg: TrainConfig, split: dict, data) -> dict:
     """Settings of ``cfg``/``split``/``data`` that differ from the checkpoint's (empty: it may resume)."""
-    old = {"lr_schedule": "constant", **ckpt["config"]}   # checkpoints from before the schedule: constant
+    # checkpoints from before these settings existed: a constant schedule, sigmoid-gated GAMs
+    old = {"lr_schedule": "constant", "gam_channel_gate": "sigmoid", **ckpt["config"]}
     resumable = RESUMABLE_CHANGES - ({"max_epochs"} if cfg.lr_schedule == "cosine" else set())   # it sets the decay
     diff = {k: (old.get(k), v) for k, v in asdict(cfg).items() if k not in resumable and old.get(k) != v}
     if ckpt["meta"].get("split_fingerprint") != _fingerprint(split):
@@ -251,7 +252,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
     use_amp = bool(cfg.amp) and device.type == "cuda"
     stats = split["label_stats"]
     meta = {"variant": cfg.variant, "depth": cfg.depth, "image_size": cfg.image_size,
-            "normalise": cfg.normalise, "label_stats": dict(stats), "label": split.get("label"),
+            "gam_channel_gate": cfg.gam_channel_gate, "normalise": cfg.normalise, "label_stats": dict(stats), "label": split.get("label"),
             "split": split.get("name"), "split_fingerprint": _fingerprint(split),
             "data_fingerprint": _data_fingerprint(data)}
 
@@ -262,7 +263,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
             torch.set_num_threads(int(cfg.num_threads))
         torch.use_deterministic_algorithms(True, warn_only=device.type != "cpu")
         torch.manual_seed(cfg.seed)
-        model = build_model(cfg.variant, cfg.depth, cfg.image_size).to(device)
+        model = build_model(cfg.variant, cfg.depth, cfg.image_size, cfg.gam_channel_gate).to(device)
         if cfg.channels_last:
             model = model.to(memory_format=torch.channels_last)
         meta["parameters"] = count_parameters(model)
@@ -417,17 +418,36 @@ def _validate(model, data, idx, cfg, stats, device, use_amp, epoch) -> tuple[flo
 
 # ----------------------------------------------------------------------------- inference
 
-def load_model(checkpoint_path: str | Path, device: str = "cpu", channels_last: bool = True) -> tuple[nn.Module, dict]:
+def load_model(checkpoint_path: str | Path, device: str = "cpu", channels_last: bool = True,
+               image_size: int | None = None) -> tuple[nn.Module, dict]:
     """Model of a ``best.pt`` or ``last.pt`` in eval mode, and its metadata (variant, depth,
-    image_size, normalise, label_stats, label, epoch, val_loss, val_mae_n, config, ...)."""
-    ckpt = _load_checkpoint(Path(checkpoint_path))
-    meta = {**ckpt["meta"], "config": ckpt["config"]}
-    model = build_model(meta["variant"], meta["depth"], meta["image_size"])
-    model.load_state_dict(ckpt["model"])
+    image_size, normalise, label_stats, label, epoch, val_loss, val_mae_n, config, ...).
+
+    A state dict saved by the public code of study 000 (its published ``best_model_*.pth``) is
+    recognised by its key names and loaded through tool/public_weights.py; it records neither its
+    input size nor its label scaling, so ``image_size`` must be given (metadata ``label_stats``
+    is then None and ``source`` "public")."""
+    from tactilepipe.tool import public_weights
+    raw = public_weights.read_state(Path(checkpoint_path))
+    if public_weights.is_public_state(raw):
+        if image_size is None:
+            raise InputError(checkpoint_path, "a public-code checkpoint records no input size: give the image "
+                                              "size to run it at")
+        model, meta = public_weights.public_model(raw, image_size, Path(checkpoint_path))
+    else:
+        model, meta = _own_model(Path(checkpoint_path), raw)
     model = model.to(resolve_device(device))
     if channels_last:
         model = model.to(memory_format=torch.channels_last)
     return model.eval(), meta
+
+
+def _own_model(checkpoint_path: Path, raw) -> tuple[nn.Module, dict]:
+    ckpt = _load_checkpoint(checkpoint_path, raw)
+    meta = {"gam_channel_gate": "sigmoid", **ckpt["meta"], "config": ckpt["config"], "source": "tactilepipe"}
+    model = build_model(meta["variant"], meta["depth"], meta["image_size"], meta["gam_channel_gate"])
+    model.load_state_dict(ckpt["model"])
+    return model, meta
 
 
 def predict(model: nn.Module, data, idx, label_stats: dict, normalise: str, batch_size: int = 256) -> np.ndarray:
