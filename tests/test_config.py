@@ -218,3 +218,34 @@ def test_atomic_outputs_get_the_usual_file_mode(tmp_path):
     umask = os.umask(0)
     os.umask(umask)
     assert (tmp_path / "a.txt").stat().st_mode & 0o777 == 0o666 & ~umask
+
+
+# --- a stage's declared parameters -------------------------------------------------------------------
+
+def test_a_stage_receives_only_the_keys_it_declares():
+    from tactilepipe.config import declared
+    resolved = {"scale": "smoke", "mlp": {"max_iter": 60, "grid": {"alpha": [1e-4]}}, "seed": 7}
+    p = declared(resolved, ["scale", "mlp.grid"], "cmd_x")
+    assert p == {"scale": "smoke", "mlp": {"grid": {"alpha": [1e-4]}}}
+    assert p["mlp"]["grid"]["alpha"] == [1e-4]
+    with pytest.raises(ConfigError, match="cmd_x: reads parameter 'seed', which the stage does not declare"):
+        p["seed"]
+    with pytest.raises(ConfigError, match="cmd_x: reads parameter 'max_iter'"):
+        p["mlp"]["max_iter"]                       # a sibling of a declared key is not declared
+    with pytest.raises(ConfigError, match="reads parameter 'seed'"):
+        p.get("seed", 2026)                        # no silent fallback default either
+    p["mlp"]["grid"]["alpha"].append(1.0)           # a copy: the resolved parameters stay as they were
+    assert resolved["mlp"]["grid"]["alpha"] == [1e-4]
+
+
+def test_declaring_a_key_that_params_yaml_lacks_is_an_error():
+    from tactilepipe.config import declared
+    with pytest.raises(ConfigError, match="cmd_x: declares parameter 'mlp.epochs', which params.yaml does not have"):
+        declared({"mlp": {"max_iter": 60}}, ["mlp.epochs"], "cmd_x")
+
+
+def test_the_cli_hands_a_stage_its_declared_parameters_only(tmp_path):
+    args = cli.build_parser().parse_args(["report", "volume", "--in-dir", str(tmp_path)])
+    p = cli._params(args, "scale")
+    with pytest.raises(ConfigError, match="reads parameter 'seed'"):
+        p["seed"]

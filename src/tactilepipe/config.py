@@ -154,6 +154,10 @@ class DeclaredParams(dict):
         raise ConfigError(f"{self.where}: reads parameter '{key}', which the stage does not declare "
                           f"(add it to the stage's _params keys in tactilepipe.cli)")
 
+    def get(self, key, default=None):
+        """As ``self[key]``: an undeclared key is an error, never a silent second default."""
+        return self[key]
+
 
 def declared(resolved: dict, keys, where: str) -> DeclaredParams:
     """``resolved`` cut down to the dotted ``keys`` ("tool_train.lr" keeps tool_train: {lr: ...})."""
