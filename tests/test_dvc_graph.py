@@ -189,6 +189,8 @@ def test_generator_lists_each_stage_code_closure_and_declared_params():
     assert {"src/tactilepipe/volume/simulate.py", "src/tactilepipe/volume/viscoelastic.py"} <= drift_code
     assert drift_code == set(codedeps.stage_files("cmd_simulate_drift"))
     assert "src/tactilepipe/tool/model.py" in stages["tool_models"]["deps"]
+    # every rule runs `python -m tactilepipe`: the package's __main__ is code of every stage
+    assert all("src/tactilepipe/__main__.py" in s["deps"] for s in stages.values())
     assert "src/tactilepipe/tool/model.py" not in stages["volume"]["deps"]
     # the analysis reads no simulator setting (provenance.json records them for a simulated session)
     assert not any(k.startswith("simulate") for k in codedeps.stage_param_keys("cmd_report_drift"))

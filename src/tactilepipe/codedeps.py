@@ -121,7 +121,8 @@ def stage_modules(stage: str) -> frozenset[str]:
     roots = _imports_in(top, CLI_MODULE, False)
     for f in _called_helpers(func, _cli_functions()):
         roots |= _imports_in(f, CLI_MODULE, False)
-    closure: set[str] = _with_parents(CLI_MODULE)
+    # rules run `python -m tactilepipe`, which enters through the package's __main__
+    closure: set[str] = _with_parents(CLI_MODULE) | {f"{CLI_MODULE.split('.')[0]}.__main__"}
     for m in roots:
         closure |= module_closure(m)
     return frozenset(closure)
