@@ -18,19 +18,11 @@ from pathlib import Path
 from tactilepipe import codedeps
 from tactilepipe.atomic import write_json
 from tactilepipe.config import declared
+from tactilepipe.hashing import file_sha256
 
 PACKAGES = ("torch", "numpy", "scikit-learn", "pandas")
 # environment variables that cap the instruction set of torch's and oneDNN's kernels
 KERNEL_VARIABLES = ("ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA", "DNNL_MAX_CPU_ISA", "OMP_NUM_THREADS")
-CHUNK = 1 << 20
-
-
-def file_sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        while block := fh.read(CHUNK):
-            h.update(block)
-    return h.hexdigest()
 
 
 def session_hash(path: str | Path) -> str:

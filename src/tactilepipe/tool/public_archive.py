@@ -14,7 +14,6 @@ depth (the archive may or may not wrap its trials in a data_normal/ folder); oth
 
 from __future__ import annotations
 
-import hashlib
 import shutil
 import stat
 import tempfile
@@ -24,19 +23,13 @@ from pathlib import Path, PurePosixPath
 from tactilepipe.atomic import write_text
 from tactilepipe.csvtext import read_text_table
 from tactilepipe.errors import InputError
+from tactilepipe.hashing import file_sha256
 from tactilepipe.tool.importers import PUBLIC_KINDS, TRIALS_CSV, TRIALS_HEADER
 from tactilepipe.tool.public_layout import FORCE_DIR, SENSOR_DIRS
 
 TRIAL_PARTS = set(SENSOR_DIRS) | {FORCE_DIR}
 CHUNK = 1 << 20
 
-
-def sha256_of(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        while block := f.read(CHUNK):
-            h.update(block)
-    return h.hexdigest()
 
 
 def verify(path: str | Path, size: int, sha256: str) -> None:
@@ -48,7 +41,7 @@ def verify(path: str | Path, size: int, sha256: str) -> None:
     if actual != size:
         raise InputError(path, f"size {actual:,} bytes, expected {size:,} (params.yaml public_data.files): "
                                f"an incomplete or different download, refused")
-    digest = sha256_of(path)
+    digest = file_sha256(path)
     if digest != sha256:
         raise InputError(path, f"sha256 {digest} differs from the expected {sha256} (params.yaml "
                                f"public_data.files): a corrupted or different file, refused")
