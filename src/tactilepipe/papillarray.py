@@ -1,6 +1,6 @@
 """Contactile PapillArray messages (driver `papillarray_ros_v2`) and a fast ROS1 codec.
 
-Message definitions follow the vendor driver (REFERENCE.md section 3). Every SensorState that a
+Message definitions follow the vendor driver's msg files (below). Every SensorState that a
 hub publishes has the same byte layout (fixed frame_id strings, 9 pillars), so a whole topic is
 encoded or decoded at once as a NumPy structured array. Anything that does not fit that layout
 is decoded message by message through rosbags, so unusual recordings still read correctly.

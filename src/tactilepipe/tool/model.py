@@ -1,4 +1,4 @@
-"""Tool-force model of study 000 (paper section III-B, REFERENCE.md §2), written out by hand.
+"""Tool-force model of study 000 (paper section III-B), written out by hand.
 
 Input: the loader's (b, 4, S, S) tensor in [0, 1], channels [left, left_ref, right, right_ref].
 The model picks its own channels, so every variant is fed by the same loader::

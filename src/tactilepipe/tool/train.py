@@ -1,4 +1,4 @@
-"""Trainer of the tool-force model (paper section IV-C, REFERENCE.md §2), as library code.
+"""Trainer of the tool-force model (paper section IV-C), as library code.
 
 Adam (lr 2e-4), L1 loss on normalised labels (min-max for the normal force, z-score for shear:
 ``TrainConfig.normalise``; the statistics are the split's ``label_stats``, taken from the
