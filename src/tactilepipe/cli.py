@@ -87,7 +87,9 @@ def cmd_simulate_volume(args) -> None:
 
 def cmd_simulate_tool(args) -> None:
     from tactilepipe.tool import simulate as tsim
+    from tactilepipe.tool.digit_background import load_background
     p = _params(args, "seed", "simulate_tool")
+    load_background(p["simulate_tool"]["render"]["background"])     # a bad frame stops here, before any trial
     out = Path(args.out_dir)
     chosen = [t for t in tsim.session_plan(p) if not args.lifts or t.name in args.lifts]
     tsim.write_session_calibration(out, p)

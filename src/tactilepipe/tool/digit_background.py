@@ -69,7 +69,11 @@ def check_background(img: np.ndarray, path: str | Path) -> np.ndarray:
 
 @lru_cache(maxsize=4)
 def _load(path: str) -> np.ndarray:
-    return check_background(read_image(path, cv2.IMREAD_UNCHANGED), path)
+    try:
+        img = read_image(path, cv2.IMREAD_UNCHANGED)
+    except InputError as exc:
+        raise InputError(path, f"simulate_tool.render.background: {exc.problem}") from None
+    return check_background(img, path)
 
 
 def load_background(setting: str | None) -> np.ndarray:
