@@ -11,8 +11,9 @@ first real frame's size, then reports per folder:
   channel with the channel's mean removed; the Pearson correlation of the two folders' grids;
 - change on contact: every frame against its reference (the first frame, in name order, of its
   own sub-folder, or a reference frame given for the folder): the mean absolute change (DN over
-  pixels and channels) and the share of pixels that changed by more than ``CHANGED_DN`` in some
-  channel, as quantiles over frames.
+  pixels and channels), its 99th percentile over pixels (largest channel change of each pixel),
+  and the share of pixels that changed by more than ``CHANGED_DN`` in some channel, as quantiles
+  over frames.
 
 A figure shows a montage of frames from both folders and histograms of pixel values and changes.
 """
@@ -48,6 +49,7 @@ class FolderStats:
     layout: np.ndarray                              # (rows, cols, 3), channel means removed
     change_mean_dn: np.ndarray = field(default_factory=lambda: np.zeros(0))   # per frame with a reference
     change_share: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    change_p99: np.ndarray = field(default_factory=lambda: np.zeros(0))      # per frame: 99th percentile of |d|
     pixels: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))     # a sample, for the histograms
     changes: np.ndarray = field(default_factory=lambda: np.zeros(0))         # a sample of |change| (DN)
     examples: list = field(default_factory=list)    # a few frames for the montage
@@ -94,7 +96,7 @@ def folder_stats(folder: str | Path, size: tuple[int, int] | None = None, refere
     size = (first.shape[1], first.shape[0])
     ref_fixed = read_frame(Path(reference), size) if reference else None
     total = np.zeros_like(first, dtype=np.float64)
-    means, stds, noises, ch_mean, ch_share, pixels, changes, examples = [], [], [], [], [], [], [], []
+    means, stds, noises, ch_mean, ch_share, ch_p99, pixels, changes, examples = [], [], [], [], [], [], [], [], []
     refs: dict[Path, np.ndarray] = {}
     for i, path in enumerate(files):
         img = first if i == 0 else read_frame(path, size)
@@ -113,6 +115,7 @@ def folder_stats(folder: str | Path, size: tuple[int, int] | None = None, refere
             diff = np.abs(img - ref)
             ch_mean.append(float(diff.mean()))
             ch_share.append(float((diff.max(axis=2) > CHANGED_DN).mean()))
+            ch_p99.append(float(np.percentile(diff.max(axis=2), 99)))
             changes.append(diff.reshape(-1)[rng.integers(0, diff.size, 300)])
         if len(examples) < 4 and (i % max(1, len(files) // 4) == 0):
             examples.append(img.astype(np.uint8))
@@ -120,6 +123,7 @@ def folder_stats(folder: str | Path, size: tuple[int, int] | None = None, refere
                        channel_mean=np.mean(means, axis=0), spatial_std=np.mean(stds, axis=0),
                        noise_std=np.mean(noises, axis=0), layout=_layout((total / len(files)).astype(np.float32)),
                        change_mean_dn=np.asarray(ch_mean), change_share=np.asarray(ch_share),
+                       change_p99=np.asarray(ch_p99),
                        pixels=np.concatenate(pixels), changes=np.concatenate(changes) if changes else np.zeros(0),
                        examples=examples)
 
@@ -165,6 +169,7 @@ def report(result: dict) -> str:
         ("frames with a reference", str(real.change_mean_dn.size), str(sim.change_mean_dn.size)),
         (f"change mean |d| (DN) {q}", _quantiles(real.change_mean_dn, "{:.2f}"),
          _quantiles(sim.change_mean_dn, "{:.2f}")),
+        (f"change p99 of |d| (DN) {q}", _quantiles(real.change_p99, "{:.1f}"), _quantiles(sim.change_p99, "{:.1f}")),
         (f"pixels changed > {CHANGED_DN:g} DN (%) {q}", _quantiles(100 * real.change_share, "{:.1f}"),
          _quantiles(100 * sim.change_share, "{:.1f}")),
     ]
