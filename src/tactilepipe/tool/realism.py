@@ -89,6 +89,9 @@ def folder_stats(folder: str | Path, size: tuple[int, int] | None = None, refere
     frame is compared with for the change statistic (None: the first frame of each sub-folder).
     """
     files = frame_files(folder)
+    firsts: dict[Path, Path] = {}
+    for path in files:                            # each sub-folder's reference, before any thinning
+        firsts.setdefault(path.parent, path)
     if len(files) > max_frames:
         files = [files[i] for i in np.linspace(0, len(files) - 1, max_frames).round().astype(int)]
     rng = np.random.default_rng(seed)
@@ -106,11 +109,14 @@ def folder_stats(folder: str | Path, size: tuple[int, int] | None = None, refere
         stds.append(flat.std(axis=0))
         noises.append((img - cv2.GaussianBlur(img, (0, 0), NOISE_SIGMA)).reshape(-1, 3).std(axis=0))
         pixels.append(flat[rng.integers(0, len(flat), 200)])
-        if ref_fixed is None and path.parent not in refs:
-            refs[path.parent] = img
+        if ref_fixed is not None:
+            ref = ref_fixed
+        elif path == firsts[path.parent]:
             ref = None                            # a sub-folder's own reference: no change to report
         else:
-            ref = ref_fixed if ref_fixed is not None else refs[path.parent]
+            if path.parent not in refs:
+                refs[path.parent] = read_frame(firsts[path.parent], size)
+            ref = refs[path.parent]
         if ref is not None:
             diff = np.abs(img - ref)
             ch_mean.append(float(diff.mean()))
