@@ -87,7 +87,9 @@ def cmd_simulate_volume(args) -> None:
 
 def cmd_simulate_tool(args) -> None:
     from tactilepipe.tool import simulate as tsim
+    from tactilepipe.tool.digit_background import load_background
     p = _params(args, "seed", "simulate_tool")
+    load_background(p["simulate_tool"]["render"]["background"])     # a bad frame stops here, before any trial
     out = Path(args.out_dir)
     chosen = [t for t in tsim.session_plan(p) if not args.lifts or t.name in args.lifts]
     tsim.write_session_calibration(out, p)
@@ -131,6 +133,14 @@ def cmd_tool_clock_figure(args) -> None:
     from tactilepipe.tool.clock_report import clock_figure
     n = clock_figure([Path(s) for s in args.shards], Path(args.out))
     print(json.dumps({"figure": args.out, "trials_plotted": n}))
+
+
+def cmd_realism(args) -> None:
+    from tactilepipe.tool import realism
+    result = realism.compare(args.real_dir, args.sim_dir, args.real_ref, args.sim_ref, args.max_frames)
+    print(realism.report(result), end="")
+    realism.figure(result, args.figure)
+    print(f"figure: {args.figure}")
 
 
 def cmd_tool_dataset(args) -> None:
@@ -360,6 +370,15 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--shards", nargs="+", required=True, help="a session's tool shards")
     s.add_argument("--out", required=True, help="PNG to write")
     s.set_defaults(func=cmd_tool_clock_figure)
+
+    s = sub.add_parser("realism", help="compare two folders of tactile frames (real vs simulated): statistics and a figure")
+    s.add_argument("real_dir", help="folder of real frames (JPEG/PNG, searched recursively; portrait or landscape)")
+    s.add_argument("sim_dir", help="folder of simulated frames (e.g. raw/tool/sim-default)")
+    s.add_argument("--real-ref", help="reference frame of the real folder (default: each sub-folder's first frame)")
+    s.add_argument("--sim-ref", help="reference frame of the simulated folder (default: each sub-folder's first frame)")
+    s.add_argument("--max-frames", type=int, default=2000, help="read at most this many frames per folder")
+    s.add_argument("--figure", default="realism.png", help="figure to write (montage and histograms)")
+    s.set_defaults(func=cmd_realism)
 
     s = sub.add_parser("tool-dataset", parents=[common], help="sync frames and force, references -> arrays")
     s.add_argument("--kind", choices=["normal", "shear"], required=True)

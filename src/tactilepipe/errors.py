@@ -21,6 +21,10 @@ class InputError(TactilepipeError):
         where = self.path if record is None else f"{self.path} [{record}]"
         super().__init__(f"{where}: {problem}")
 
+    def __reduce__(self):
+        # rebuilt from its own arguments, so it survives the trip back from a worker process
+        return type(self), (self.path, self.problem, self.record)
+
 
 class ConfigError(TactilepipeError):
     """params.yaml (or an override) is invalid."""

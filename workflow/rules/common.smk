@@ -15,6 +15,7 @@ from tactilepipe.volume.simulate import session_plan
 from tactilepipe.drift.simulate import session_plan as drift_plan
 from tactilepipe.tool.importers import TRIALS_CSV, list_trials as list_tool_trials
 from tactilepipe.tool.simulate import session_plan as tool_plan
+from tactilepipe.tool.digit_background import background_path
 
 # `config` is params.yaml plus any --config overrides; validate and resolve the scale up front
 # so a wrong key or type stops the run before any job starts.
@@ -42,6 +43,12 @@ def stage_code(stage):
     """Source files the CLI stage function ``stage`` runs (its import closure in tactilepipe): a
     rule lists them as inputs, so editing one re-runs exactly the rules that run it."""
     return [_repo_relative(codedeps.module_path(m)) for m in sorted(codedeps.stage_modules(stage))]
+
+
+def tool_background_frame():
+    """The no-contact DIGIT frame the tool simulator draws on (simulate_tool.render.background, or
+    the one shipped with the package): an input, so replacing the file re-runs the simulator."""
+    return _repo_relative(background_path(P["simulate_tool"]["render"]["background"]))
 
 
 PARAM_STAMPS = "results/params"

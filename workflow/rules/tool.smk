@@ -8,6 +8,7 @@ TOOL_SPLITS = ["frame", "trial", "loto", "lopo", "public_frame"]   # public_fram
 
 rule simulate_tool:
     input:
+        background=tool_background_frame(),
         code=stage_code("cmd_simulate_tool"),
         params=param_stamp("cmd_simulate_tool"),
     output:

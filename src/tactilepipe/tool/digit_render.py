@@ -1,6 +1,6 @@
 """Gel height field -> a DIGIT-looking frame (portrait QVGA, 240 wide x 320 high, BGR uint8).
 
-Optics and gel model (REFERENCE.md sections 3 and 4), all numbers from ``render`` parameters:
+Optics and gel model (docs/digit_rendering.md), all numbers from ``render`` parameters:
 - Geometry: the camera sees the gel at ``px_per_mm`` (~17 px/mm at QVGA, so the view is about
   14 x 19 mm). Image x runs across the pad (pad coordinate u), image y down the finger towards
   the fingertip (pad coordinate z points up, towards the palm). The two DIGITs face each other,
@@ -19,14 +19,19 @@ Optics and gel model (REFERENCE.md sections 3 and 4), all numbers from ``render`
 - Shear: the gel surface sticks to the handle; the surface displacement (a smooth field, equal
   to the handle's tangential displacement on the contact and decaying away from it) moves the
   height field (``cv2.remap``). The LED illumination does not move.
-- Shading: normals from Sobel gradients; three coloured LEDs 120 deg apart around the gel, each
-  lighting every pixel from its own direction at a grazing elevation:
-  I_c = bg_c + sum_l k_cl(x) (n . L_l(x) - n0 . L_l(x)), k_cl(x) stronger near LED l.
-- Background: a grey-blue gel with a smooth red / green / blue glow from the three LEDs and
-  vignetting; static gel blemishes (tiny bumps) that move with the gel surface.
-- Camera: Gaussian noise of sigma 2-7 DN per sensor (a precomputed bank of noise frames, sampled
-  with random offsets per frame, keeps rendering fast and deterministic), small per-frame LED gain
-  jitter and a slow background drift (given by the caller per frame).
+- Background: a real DIGIT's no-contact frame (digit_background.py; the shipped one or the
+  sensor's own), as tacto and Taxim draw on one. Each simulated unit moves it by a few whole
+  pixels and gives each channel its own small gain and offset, so two fingers are not identical.
+- Shading: normals from Sobel gradients; three coloured LEDs around the gel, each lighting every
+  pixel from its own direction at a grazing elevation:
+  I_c = bg_c + sum_l m_cl k_l(x) (n . L_l(x) - n0 . L_l(x)), with the LED directions measured on
+  the background (where its colour floods the gel) and k_l(x) = shading_gain x the background's
+  local level in the LED's channel (a tilt redistributes the light that is there); m_cl: a small
+  crosstalk into the other channels. Static gel blemishes (tiny bumps) move with the gel surface.
+- Camera: the background already holds one frozen draw of the camera's noise; each frame adds
+  Gaussian noise of its own (sigma per sensor, per channel; a precomputed bank of noise frames,
+  sampled with random offsets per frame, keeps rendering fast and deterministic), small
+  per-frame LED gain jitter and a slow background drift (given by the caller per frame).
 
 Everything is float32 with cv2 for blur / Sobel / remap / resize; ``Renderer.render`` runs at
 several hundred QVGA frames per second on one core.
@@ -39,6 +44,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from tactilepipe.tool.digit_background import led_azimuths, load_background, shading_level
 from tactilepipe.tool.layout import FRAME_H, FRAME_W
 
 TEXTURES = ("none", "flutes", "knurl", "ribs", "grain")
@@ -223,48 +229,53 @@ class DigitLook:
     light_c: np.ndarray         # (3, h, w) float32: k_l(x) L_z   (k_l: DN per unit of n.L change)
     colour: np.ndarray          # (3, 3) float32: BGR share of each LED's light (row per channel)
     blemish: np.ndarray         # grid.shape float32 mm: static bumps on the gel surface
-    noise_std: float            # DN
+    noise_std: np.ndarray       # (3,) DN per channel (B, G, R), added to what the background holds
 
 
-def make_look(rng: np.random.Generator, cfg: dict, grid: Grid) -> DigitLook:
-    """Draw one sensor's look from the ``render`` parameters (per-sensor variations included)."""
-    H, W = FRAME_H, FRAME_W
-    yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
-    cx, cy = W / 2, H / 2
-    base = np.asarray(cfg["background_bgr"], np.float32) + rng.normal(0, cfg["background_jitter_dn"], 3)
-    bg = np.broadcast_to(base, (H, W, 3)).copy()
-    led_rgb = np.asarray(cfg["led_glow_bgr"], np.float32)          # (3 LEDs, BGR)
-    az0 = np.deg2rad(cfg["led_azimuth_deg"]) + np.deg2rad(rng.normal(0, 4.0))
-    azimuths = az0 + np.deg2rad([0.0, 120.0, 240.0])
-    dist = cfg["led_distance_px"] * rng.uniform(0.93, 1.07, 3)
-    sigma = cfg["led_glow_sigma_px"]
-    glows = []
-    for k in range(3):
-        lx, ly = cx + dist[k] * np.cos(azimuths[k]), cy + dist[k] * np.sin(azimuths[k])
-        g = np.exp(-((xx - lx) ** 2 + (yy - ly) ** 2) / (2 * sigma ** 2)).astype(np.float32)
-        g /= g.max()
-        glows.append((lx, ly, g))
-        bg += g[..., None] * led_rgb[k] * rng.uniform(0.85, 1.15)
-    r2 = ((xx - cx) / cx) ** 2 + ((yy - cy) / cy) ** 2
-    bg *= (1.0 - cfg["vignette"] * r2 / 2)[..., None]
+def sensor_background(rng: np.random.Generator, cfg: dict, frame: np.ndarray) -> np.ndarray:
+    """This sensor's no-contact frame: the real one moved by a few whole pixels (the gel and the
+    camera sit a little differently in every unit; whole pixels keep its grain and noise as they
+    are), with a per-channel LED gain and a small offset of its own."""
+    m = int(cfg["background_shift_px"])
+    dx, dy = (int(v) for v in rng.integers(-m, m + 1, 2)) if m > 0 else (0, 0)
+    bg = frame
+    if dx or dy:
+        shift = np.float32([[1, 0, dx], [0, 1, dy]])
+        bg = cv2.warpAffine(frame, shift, (FRAME_W, FRAME_H), flags=cv2.INTER_NEAREST,
+                            borderMode=cv2.BORDER_REFLECT_101)
+    gain = 1.0 + cfg["background_gain_jitter"] * rng.standard_normal(3)
+    offset = cfg["background_jitter_dn"] * rng.standard_normal(3)
+    return (bg * gain.astype(np.float32) + offset.astype(np.float32)).astype(np.float32)
 
-    # light directions and shading strengths at reduced resolution
+
+def make_look(rng: np.random.Generator, cfg: dict, grid: Grid, frame: np.ndarray | None = None) -> DigitLook:
+    """Draw one sensor's look from the ``render`` parameters and a real no-contact ``frame``
+    (float32 BGR, default: the one ``cfg["background"]`` names); per-sensor variations included."""
+    if frame is None:
+        frame = load_background(cfg.get("background"))
+    bg = sensor_background(rng, cfg, frame)
+    # LED directions from the layout of the colours; shading strength from the local level of
+    # each channel (a tilt of the gel moves that much light), both per sensor
+    azimuths = led_azimuths(bg) + np.deg2rad(rng.normal(0, 2.0, 3))
+    level = shading_level(bg, (grid.h, grid.w))
     xs = (np.arange(grid.w) + 0.5) * grid.down
     ys = (np.arange(grid.h) + 0.5) * grid.down
     gx, gy = np.meshgrid(xs, ys)
     elev = np.deg2rad(cfg["light_elevation_deg"])
-    gain = np.asarray(cfg["shading_gain_dn"], np.float32)
-    la, lb, lc, colours = [], [], [], []
-    for k, (lx, ly, g) in enumerate(glows):
+    dist = cfg["led_distance_px"] * rng.uniform(0.95, 1.05, 3)
+    gain = float(cfg["shading_gain"]) * rng.uniform(0.95, 1.05, 3)
+    la, lb, lc = [], [], []
+    for k in range(3):                          # the blue, green and red LED
+        lx = FRAME_W / 2 + dist[k] * np.cos(azimuths[k])
+        ly = FRAME_H / 2 + dist[k] * np.sin(azimuths[k])
         vx, vy = lx - gx, ly - gy
         norm = np.hypot(vx, vy) + 1e-6
-        L = np.stack([vx / norm * np.sin(elev), vy / norm * np.sin(elev),
-                      np.full_like(vx, np.cos(elev))])
-        g_small = cv2.resize(g, (grid.w, grid.h), interpolation=cv2.INTER_AREA)
-        strength = gain[k] * (0.45 + 0.55 * g_small) * rng.uniform(0.9, 1.1)
+        L = np.stack([vx / norm * np.sin(elev), vy / norm * np.sin(elev), np.full_like(vx, np.cos(elev))])
+        strength = gain[k] * level[k]
         la.append(-strength * L[0]), lb.append(-strength * L[1]), lc.append(strength * L[2])
-        colour = led_rgb[k] / np.abs(led_rgb[k]).max()
-        colours.append(0.25 + 0.75 * np.clip(colour, 0, 1))    # some white in every LED
+    x = float(cfg["led_crosstalk"])
+    colour = np.full((3, 3), x, np.float32)
+    np.fill_diagonal(colour, 1.0)
     # blemishes: dust and tiny bumps on the gel surface (move with the gel)
     blemish = np.zeros(grid.shape, np.float32)
     by, bx = np.mgrid[0:grid.shape[0], 0:grid.shape[1]].astype(np.float32)
@@ -275,10 +286,10 @@ def make_look(rng: np.random.Generator, cfg: dict, grid: Grid) -> DigitLook:
         amp = rng.uniform(-1, 1) * cfg["blemish_height_mm"]
         blemish += amp * np.exp(-((bx - px) ** 2 + (by - py) ** 2) / (2 * s ** 2))
     lo, hi = cfg["noise_std_dn"]
-    return DigitLook(background=bg.astype(np.float32), light_a=np.asarray(la, np.float32),
+    noise = rng.uniform(lo, hi) * np.asarray(cfg["noise_channel_scale"], np.float32)
+    return DigitLook(background=bg, light_a=np.asarray(la, np.float32),
                      light_b=np.asarray(lb, np.float32), light_c=np.asarray(lc, np.float32),
-                     colour=np.asarray(colours, np.float32).T.copy(), blemish=blemish,
-                     noise_std=float(rng.uniform(lo, hi)))
+                     colour=colour, blemish=blemish, noise_std=noise.astype(np.float32))
 
 
 class Renderer:
@@ -303,8 +314,9 @@ class Renderer:
         m = grid.margin
         self.crop = (slice(m, m + grid.h), slice(m, m + grid.w))
         p = self.NOISE_PAD
+        std = np.broadcast_to(np.asarray(look.noise_std, np.float32), (3,))
         self.noise = (rng.standard_normal((noise_bank, FRAME_H + p, FRAME_W + p, 3), dtype=np.float32)
-                      * np.float32(look.noise_std)) if look.noise_std > 0 else None
+                      * std) if std.max() > 0 else None
 
     def inverse_map(self, disp: tuple[np.ndarray, np.ndarray], iterations: int = 3) -> np.ndarray:
         """Where each output pixel comes from: x_src = x - u(x_src), by fixed-point iteration on
