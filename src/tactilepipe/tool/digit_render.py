@@ -252,7 +252,7 @@ def make_look(rng: np.random.Generator, cfg: dict, grid: Grid, frame: np.ndarray
     """Draw one sensor's look from the ``render`` parameters and a real no-contact ``frame``
     (float32 BGR, default: the one ``cfg["background"]`` names); per-sensor variations included."""
     if frame is None:
-        frame = load_background(cfg.get("background"))
+        frame = load_background(cfg["background"])
     bg = sensor_background(rng, cfg, frame)
     # LED directions from the layout of the colours; shading strength from the local level of
     # each channel (a tilt of the gel moves that much light), both per sensor
