@@ -69,11 +69,13 @@ def test_every_rule_that_runs_something_declares_its_resources():
 
 
 @pytest.mark.parametrize("scale, gpu", [("smoke", 0), ("default", 0), ("paper", 1)])
-def test_training_asks_for_a_gpu_only_at_the_paper_scale(scale, gpu):
+def test_the_network_asks_for_a_gpu_only_at_the_paper_scale(scale, gpu):
     p = load_params(REPO / "params.yaml", {"scale": scale})
     res = {**p["resources"]["default"], **p["resources"]["rules"]["tool_train"]}
     assert res["gpu"] == gpu
-    others = [r for r in p["resources"]["rules"] if r != "tool_train"]
+    # the other rule that runs the network at the paper's size: the published weights over every frame
+    assert {**p["resources"]["default"], **p["resources"]["rules"]["study000_evaluate_published"]}["gpu"] == gpu
+    others = [r for r in p["resources"]["rules"] if r not in ("tool_train", "study000_evaluate_published")]
     assert all({**p["resources"]["default"], **p["resources"]["rules"][r]}["gpu"] == 0 for r in others)
     if scale == "paper":
         assert res["runtime"] >= 24 * 60 and res["mem_mb"] >= 16000

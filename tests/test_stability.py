@@ -414,11 +414,13 @@ def test_tables_show_undefined(tmp_path):
 
 def test_volume_report_formats_undefined_r2():
     from tactilepipe.volume import report
-    s = report._summary(pd.DataFrame({"r2": [float("nan")] * 3}))
+    s = report._summary(pd.DataFrame({"fold": [0, 1, 2], "r2": [float("nan")] * 3}), 0.4)
     assert math.isnan(s["mean"]) and s["undefined_folds"] == 3
     assert report._r2_text(s).startswith("undefined (the true values are constant")
-    part = report._summary(pd.DataFrame({"r2": [0.9, float("nan"), 0.7]}))
+    part = report._summary(pd.DataFrame({"fold": [0, 1, 2], "r2": [0.9, float("nan"), 0.7]}), 0.4)
     assert part["mean"] == pytest.approx(0.8) and "1 of 3 folds undefined" in report._r2_text(part)
+    assert all(math.isnan(v) for v in s["ci95"])                  # no interval without two defined folds
+    assert part["ci95"][0] < 0.8 < part["ci95"][1]                  # two defined folds: an interval
     assert report._json_safe({"a": float("nan"), "b": [np.float64(np.inf), 1.0]}) == {"a": None, "b": [None, 1.0]}
 
 

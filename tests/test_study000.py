@@ -77,8 +77,7 @@ def server(stand_ins):
 @pytest.fixture(scope="module")
 def project(tmp_path_factory, stand_ins, server) -> Path:
     """A git + DVC copy of the project at the smoke scale whose public_data points at the stand-ins."""
-    wd = copy_project(tmp_path_factory.mktemp("study000") , scale="smoke")
-    shutil.copytree(REPO / STUDY, wd / STUDY, symlinks=True)
+    wd = copy_project(tmp_path_factory.mktemp("study000"), scale="smoke")     # studies/ included
     for name in (".gitignore", ".dvcignore"):
         shutil.copy(REPO / name, wd / name)
     params = yaml.safe_load((wd / "params.yaml").read_text())

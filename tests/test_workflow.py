@@ -23,8 +23,9 @@ def copy_project(dest: Path, scale: str | None = None) -> Path:
     for name in ("Snakefile", "params.yaml", "dvc.yaml", ".dvcignore"):
         if (REPO / name).exists():
             shutil.copy(REPO / name, dest / name)
-    for name in ("workflow", "src"):
-        shutil.copytree(REPO / name, dest / name, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+    for name in ("workflow", "src", "studies"):
+        shutil.copytree(REPO / name, dest / name, symlinks=True,
+                        ignore=shutil.ignore_patterns("__pycache__", "*.egg-info", "raw", "results", "cache", "tmp"))
     if scale:
         text = (dest / "params.yaml").read_text().replace("scale: default ", f"scale: {scale} ")
         assert f"scale: {scale} " in text

@@ -21,7 +21,7 @@ rule study000_protocols:
     params:
         out_dir=STUDY000,
     resources:
-        **rule_resources("tool_model_report"),
+        **rule_resources("study000_protocols"),
     log:
         f"{LOGS}/study000/protocols.log",
     shell:
@@ -41,7 +41,7 @@ rule study000_evaluate_published:
         out_dir=f"{STUDY000}/published_normal",
     threads: 2
     resources:
-        **rule_resources("tool_train"),
+        **rule_resources("study000_evaluate_published"),
     log:
         f"{LOGS}/study000/published_normal.log",
     shell:
@@ -60,7 +60,7 @@ rule study000_published:
     params:
         out_dir=STUDY000,
     resources:
-        **rule_resources("tool_model_report"),
+        **rule_resources("study000_published"),
     log:
         f"{LOGS}/study000/published.log",
     shell:
