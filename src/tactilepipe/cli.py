@@ -188,12 +188,9 @@ def cmd_predict(args) -> None:
 
 
 def cmd_unpack_public(args) -> None:
-    from tactilepipe.tool.public_archive import unpack, verify, write_trials_template
+    from tactilepipe.tool.public_archive import unpack, verify_listed, write_trials_template
     p = _params(args, "public_data.files", "public_data.session")
-    files = p["public_data"]["files"]
-    if args.name not in files:
-        raise TactilepipeError(f"--name {args.name}: not a file of params.yaml public_data.files ({sorted(files)})")
-    verify(args.archive, files[args.name]["size"], files[args.name]["sha256"])
+    verify_listed(args.archive, p["public_data"]["files"], args.name, "--name")
     session = Path(args.raw_root) / p["public_data"]["session"]
     trials = unpack(args.archive, args.name, session)
     added = write_trials_template(session)
@@ -208,14 +205,11 @@ def cmd_tool_evaluate(args) -> None:
     from tactilepipe.tool.reproduce import evaluate_checkpoint
     p = _params(args, "tool_train.device", "public_data.files")
     if args.expect:
-        from tactilepipe.tool.public_archive import verify
-        files = p["public_data"]["files"]
-        if args.expect not in files:
-            raise TactilepipeError(f"--expect {args.expect}: not a file of params.yaml public_data.files ({sorted(files)})")
-        verify(args.checkpoint, files[args.expect]["size"], files[args.expect]["sha256"])
-    split = None if args.all_frames else Path(args.split) if args.split else None
-    if split is None and not args.all_frames:
+        from tactilepipe.tool.public_archive import verify_listed
+        verify_listed(args.checkpoint, p["public_data"]["files"], args.expect, "--expect")
+    if not (args.all_frames or args.split):
         raise TactilepipeError("tool-evaluate: give --split SPLIT_JSON (its test set) or --all-frames")
+    split = None if args.all_frames else Path(args.split)
     result = evaluate_checkpoint(Path(args.checkpoint), Path(args.data_dir), args.scene, Path(args.out_dir), split,
                                  args.contaminated, p["tool_train"]["device"])
     print(json.dumps({k: result[k] for k in ("source", "frames", "n", "mae", "rmse", "r2", "contaminated")}))

@@ -22,7 +22,7 @@ from pathlib import Path, PurePosixPath
 
 from tactilepipe.atomic import write_text
 from tactilepipe.csvtext import read_text_table
-from tactilepipe.errors import InputError
+from tactilepipe.errors import InputError, TactilepipeError
 from tactilepipe.hashing import file_sha256
 from tactilepipe.tool.importers import PUBLIC_KINDS, TRIALS_CSV, TRIALS_HEADER
 from tactilepipe.tool.public_layout import FORCE_DIR, SENSOR_DIRS
@@ -30,6 +30,13 @@ from tactilepipe.tool.public_layout import FORCE_DIR, SENSOR_DIRS
 TRIAL_PARTS = set(SENSOR_DIRS) | {FORCE_DIR}
 CHUNK = 1 << 20
 
+
+def verify_listed(path: str | Path, files: dict, name: str, option: str) -> None:
+    """``verify`` against the entry ``name`` of params.yaml public_data.files (``files``);
+    ``option`` is the command-line option that named it, for the error."""
+    if name not in files:
+        raise TactilepipeError(f"{option} {name}: not a file of params.yaml public_data.files ({sorted(files)})")
+    verify(path, files[name]["size"], files[name]["sha256"])
 
 
 def verify(path: str | Path, size: int, sha256: str) -> None:
