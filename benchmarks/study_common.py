@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from tactilepipe.config import load_params
-from tactilepipe.tool.evaluate import baselines, summarise, tactile_rmse_features
+from tactilepipe.tool.evaluate import linear_fit_predictions, summarise, tactile_rmse_features
 from tactilepipe.tool.loader import ToolFrames
 from tactilepipe.tool.run_model import LABELS, train_and_predict
 
@@ -51,7 +51,7 @@ def baseline_on(scene: Scene, split: dict) -> dict:
     """The tactile-RMSE linear baseline refitted on ``split``'s training rows, scored on its test rows."""
     test = np.asarray(split["test"])
     return summarise(scene.data.labels[test],
-                     baselines(scene.data.labels, scene.rmse_features, split)["tactile_rmse_linear"])
+                     linear_fit_predictions(scene.data.labels, scene.rmse_features, split))
 
 
 def train_on(scene_name: str, scene: Scene, split: dict, out: Path, variant: str, tool_train: dict) -> tuple[dict, float]:

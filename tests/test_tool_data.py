@@ -8,7 +8,7 @@ import pytest
 
 from tactilepipe.errors import InputError
 from tactilepipe.tool.serial_log import read_serial_log
-from tactilepipe.tool.splits import make_split, thin_training
+from tactilepipe.tool.splits import make_split, parse_split_name, split_name, thin_training
 from tactilepipe.tool.clock_sync import fit_offset
 from tactilepipe.tool.sync import calibrate, interpolate_at, pair_frames
 
@@ -124,9 +124,9 @@ def samples():
     return pd.concat(rows, ignore_index=True)
 
 
-@pytest.mark.parametrize("name", ["frame", "trial", "loto", "lopo"])
+@pytest.mark.parametrize("name", ["frame", "trial", "trial_r2", "loto_spatula", "lopo"])
 def test_splits_are_disjoint_and_cover_the_data(samples, name):
-    split = make_split(samples, name, "fz", seed=1, holdout_tool="spatula", holdout_pose=0)
+    split = make_split(samples, name, "fz", seed=1, holdout_pose=0)
     parts = [set(split[k]) for k in ("train", "validation", "test")]
     assert all(parts) and not (parts[0] & parts[1]) and not (parts[0] & parts[2]) and not (parts[1] & parts[2])
     assert set().union(*parts) == set(range(len(samples)))
@@ -163,12 +163,42 @@ def test_frame_split_leaks_trials_across_splits(samples):
     assert set(samples["trial"].iloc[split["test"]]) <= train_trials      # why it is "leaky"
 
 
-def test_leave_one_tool_out_tests_only_the_held_out_tool(samples):
-    split = make_split(samples, "loto", "fz", seed=1, holdout_tool="spatula")
-    assert set(samples["tool"].iloc[split["test"]]) == {"spatula"}
-    assert "spatula" not in set(samples["tool"].iloc[split["train"] + split["validation"]])
+@pytest.mark.parametrize("tool", ["screwdriver_1", "screwdriver_2", "paper_knife", "spatula"])
+def test_leave_one_tool_out_tests_only_the_held_out_tool(samples, tool):
+    split = make_split(samples, f"loto_{tool}", "fz", seed=1)
+    assert set(samples["tool"].iloc[split["test"]]) == {tool}
+    assert tool not in set(samples["tool"].iloc[split["train"] + split["validation"]])
+    assert (split["kind"], split["repeat"]) == ("loto", 0)
+
+
+def test_a_held_out_tool_that_is_not_in_the_data_or_an_unknown_split_is_refused(samples):
     with pytest.raises(InputError, match="held-out tool 'hammer'"):
-        make_split(samples, "loto", "fz", seed=1, holdout_tool="hammer")
+        make_split(samples, "loto_hammer", "fz", seed=1)
+    for name in ("loto", "trial_r0", "trial_rx", "random", "lopo_2"):
+        with pytest.raises(InputError, match=f"unknown split '{name}'"):
+            make_split(samples, name, "fz", seed=1)
+
+
+def test_split_names_parse_into_kind_repeat_and_tool():
+    assert parse_split_name("trial") == ("trial", 0, None)
+    assert parse_split_name("trial_r12") == ("trial", 12, None)
+    assert parse_split_name("public_frame_r1") == ("public_frame", 1, None)
+    assert parse_split_name("loto_screwdriver_1") == ("loto", 0, "screwdriver_1")
+    assert [split_name("trial", k) for k in range(3)] == ["trial", "trial_r1", "trial_r2"]
+
+
+def test_every_repeat_is_grouped_by_trial_stratified_by_tool_and_drawn_anew(samples):
+    splits = [make_split(samples, split_name("trial", k), "fz", seed=1) for k in range(5)]
+    assert splits[0] == {**make_split(samples, "trial", "fz", seed=1)}      # repeat 0 is the unsuffixed split
+    for k, split in enumerate(splits):
+        assert split["repeat"] == k and split["kind"] == "trial"
+        trials = [set(samples["trial"].iloc[split[part]]) for part in ("train", "validation", "test")]
+        assert not (trials[0] & trials[1]) and not (trials[0] & trials[2]) and not (trials[1] & trials[2])
+        for part, n in (("train", 4), ("validation", 1), ("test", 1)):       # 6 trials per tool
+            rows = samples.iloc[split[part]]
+            assert rows.groupby("tool")["trial"].nunique().to_dict() == dict.fromkeys(samples["tool"].unique(), n)
+    tests = [tuple(s["trials"]["test"]) for s in splits]
+    assert len(set(tests)) == len(tests)                  # each repeat has its own test trials
 
 
 def test_leave_one_pose_out_tests_one_pose_of_every_tool(samples):

@@ -428,12 +428,53 @@ def test_over_time_figure_shows_the_strongest_trial_of_each_tool(tmp_path):
     assert (tmp_path / "fig.png").stat().st_size > 10_000
 
 
-def test_beats_baselines_needs_both_lower_mae_and_higher_r2():
-    from tactilepipe.tool.evaluate import beats_baselines
-    base = {"mean_predictor": {"mae": 4.0, "r2": 0.0}, "tactile_rmse_linear": {"mae": 1.0, "r2": 0.8}}
-    evals = {"full": {"mae": 0.5, "r2": 0.95},        # beats both
-             "lower_mae_only": {"mae": 0.9, "r2": 0.7},
-             "higher_r2_only": {"mae": 1.2, "r2": 0.85},
-             "tie": {"mae": 1.0, "r2": 0.9}}          # equal MAE is not lower
-    assert beats_baselines(evals, base) == {"full": True, "lower_mae_only": False,
-                                            "higher_r2_only": False, "tie": False}
+def test_a_verdict_needs_both_improvements_separated_from_zero_over_the_draws():
+    from tactilepipe.tool.verdicts import versus
+    base = {"mae": [1.5, 1.6, 1.7], "r2": [0.80, 0.85, 0.83]}
+    good = {"mae": [1.0, 1.2, 1.1], "r2": [0.90, 0.92, 0.91]}
+    v = versus(good, base, test_train_ratio=0.0)
+    # MAE improvements 0.5, 0.4, 0.6: mean 0.5, std 0.1, t(0.975, 2) = 4.302653, half = 4.302653 * 0.1 / sqrt(3)
+    assert v["mae_improvement"]["mean"] == pytest.approx(0.5)
+    assert v["mae_improvement"]["low"] == pytest.approx(0.5 - 0.248414, abs=1e-5)
+    # R² improvements 0.10, 0.07, 0.08: mean 0.08333, std 0.015275, half 0.037946
+    assert v["r2_improvement"]["low"] == pytest.approx(0.083333 - 0.037946, abs=1e-5)
+    assert v["beats"] is True
+    # Nadeau-Bengio widening with n_test/n_train = 0.25: half = 4.302653 * 0.1 * sqrt(1/3 + 0.25)
+    assert versus(good, base, 0.25)["mae_improvement"]["high"] == pytest.approx(0.5 + 0.328621, abs=1e-5)
+    # a better mean the draws cannot separate from zero is no verdict
+    noisy = {"mae": [1.0, 1.9, 1.3], "r2": good["r2"]}
+    assert versus(noisy, base, 0.0)["mae_improvement"]["mean"] > 0 and versus(noisy, base, 0.0)["beats"] is False
+    # separated on MAE but worse on R²: not "beats"
+    assert versus({"mae": good["mae"], "r2": [0.70, 0.75, 0.74]}, base, 0.0)["beats"] is False
+    # one draw says nothing about the spread
+    assert versus({"mae": [1.0], "r2": [0.9]}, {"mae": [2.0], "r2": [0.5]}, 0.0)["beats"] is False
+
+
+def test_the_like_for_like_baselines_see_what_their_variant_sees():
+    from tactilepipe.tool.evaluate import (LIKE_FOR_LIKE, baselines, rest_frame_rmse_features,
+                                           tactile_rmse_features)
+    rng = np.random.default_rng(0)
+    references = rng.integers(0, 255, (4, 2, 3, 3)).astype(np.uint8)         # 4 trials, 2 fingers
+    trial_index = np.repeat(np.arange(4), 5)
+    frames = rng.integers(0, 255, (20, 2, 3, 3)).astype(np.uint8)
+    split = {"train": list(range(10)), "test": list(range(10, 20))}          # trials 0-1 train, 2-3 test
+    rest = rest_frame_rmse_features(frames, references, trial_index, split["train"])
+    mean_rest = references[:2].astype(float).mean(axis=0)
+    assert rest[13, 1] == pytest.approx(np.sqrt(((frames[13, 1] - mean_rest[1]) ** 2).mean()), rel=1e-5)
+    # the rest-frame baseline never sees a test trial's own reference
+    other = references.copy()
+    other[2:] = 0
+    assert np.array_equal(rest, rest_frame_rmse_features(frames, other, trial_index, split["train"]))
+    labels = rng.normal(size=20).astype(np.float32)
+    rmse = tactile_rmse_features(frames, references, trial_index)
+    pred = baselines(labels, rmse, rest, split)
+    assert set(pred) == {"mean_predictor", "tactile_rmse_linear", "rest_frame_rmse_linear", "one_finger_rmse_linear"}
+    assert set(LIKE_FOR_LIKE.values()) <= set(pred)
+    assert pred["mean_predictor"] == pytest.approx(np.full(10, labels[:10].mean()))
+    # the one-finger baseline is a fit on the left finger only: the right finger's frames do not move it
+    right_changed = rmse.copy()
+    right_changed[:, 1] = rng.normal(size=20)
+    assert baselines(labels, right_changed, rest, split)["one_finger_rmse_linear"] == \
+        pytest.approx(pred["one_finger_rmse_linear"])
+    assert not np.allclose(baselines(labels, right_changed, rest, split)["tactile_rmse_linear"],
+                           pred["tactile_rmse_linear"])

@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -81,7 +82,7 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_run: Path):
     assert d["drift_30min_n"]["loaded"] > d["drift_30min_n"]["unloaded"] > 0
     assert (wd / "results/drift/figures/drift_curves.png").exists()
     for scene in ("tool_normal", "tool_shear"):
-        for split in ("frame", "trial", "loto", "lopo"):
+        for split in ("frame", "trial", "trial_r1", "loto_spatula", "loto_paper_knife", "lopo"):
             split_json = json.loads((wd / f"results/{scene}/splits/{split}.json").read_text())
             assert split_json["train"] and split_json["test"]
         for fig in ("pressing_strip", "rmse_vs_force", "force_profiles", "force_histogram"):
@@ -89,9 +90,30 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_run: Path):
         assert "| trial |" in (wd / f"results/{scene}/qc.md").read_text()
         # every model variant trained and evaluated, with the report's tables and figures
         tm = json.loads((wd / f"results/{scene}/metrics.json").read_text())
+        assert tm["repeats"] == 2 and tm["splits"] == ["trial", "trial_r1"]
         for variant in ("full", "no_ref", "single", "no_gam"):
-            assert {"mae", "rmse", "r2"} <= set(tm[variant]), (scene, variant)
-            assert not {"train_s", "latency_ms"} & set(tm[variant]), "run times belong in runtime.json"
+            t = tm[variant]
+            assert {"mae", "rmse", "r2"} <= set(t), (scene, variant)
+            assert not {"train_s", "latency_ms"} & set(t), "run times belong in runtime.json"
+            # per-split values (split 0 is the one the top-level numbers and figures use), intervals
+            assert len(t["per_split"]["mae"]) == 2 and t["per_split"]["mae"][0] == t["mae"]
+            o = t["over_splits"]["mae"]
+            assert o["n"] == 2 and o["low"] <= o["mean"] <= o["high"] and o["mean"] == pytest.approx(np.mean(t["per_split"]["mae"]))
+            # like-for-like verdicts, and the paired difference to the full model for each ablation
+            assert t["like_for_like_baseline"] == {"full": "tactile_rmse_linear", "no_gam": "tactile_rmse_linear",
+                                                   "no_ref": "rest_frame_rmse_linear",
+                                                   "single": "one_finger_rmse_linear"}[variant]
+            assert set(t["versus_baselines"]) == {t["like_for_like_baseline"], "mean_predictor"}
+            assert t["beats_baselines"] == all(a["beats"] for a in t["versus_baselines"].values())
+            if variant != "full":
+                d = t["minus_full"]["mae"]
+                assert d["per_draw"] == pytest.approx(np.subtract(t["per_split"]["mae"], tm["full"]["per_split"]["mae"]))
+        assert set(tm["baselines"]) == {"mean_predictor", "tactile_rmse_linear", "rest_frame_rmse_linear",
+                                        "one_finger_rmse_linear"}
+        assert sorted(tm["ablation_ranking_by_mae"].split()[::2]) == sorted(tm["ablation_order_by_mae"])
+        # leave-one-tool-out: every tool of the smoke session held out in turn, with the mean over tools
+        assert set(tm["loto"]["per_tool"]) == {"screwdriver_1", "paper_knife", "spatula"}
+        assert tm["loto"]["over_tools"]["mae"]["n"] == 3
         runtime = json.loads((wd / f"results/{scene}/runtime.json").read_text())
         assert all(r["train_s"] > 0 and r["latency_ms"] > 0 for r in runtime.values()) and "full" in runtime
         prov = json.loads((wd / f"results/{scene}/provenance.json").read_text())
@@ -99,10 +121,11 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_run: Path):
         assert len(prov["sessions"]["raw/tool/sim-smoke"]) == 64
         assert prov["stages"]["cmd_tool_train"]["params"]["tool_train"]["lr"] > 0
         assert set(prov["environment"]["packages"]) == {"torch", "numpy", "scikit-learn", "pandas"}
-        for table in ("variants", "per_tool", "per_window", "runtime"):
+        for table in ("variants", "intervals", "differences", "per_tool", "per_window", "runtime", "loto"):
             assert (wd / f"results/{scene}/tables/{table}.md").read_text().count("|") > 10
+        assert len(runtime) == 4 * 2 + 3 + 1           # variants x repeats, one per held-out tool, the sweep
         for fig in ("sorted_predictions", "over_time", "per_tool", "window_heatmap", "regression",
-                    "error_vs_runtime"):
+                    "error_vs_runtime", "intervals", "loto"):
             assert (wd / f"results/{scene}/figures/{fig}.png").read_bytes()[:4] == b"\x89PNG"
     # every rule logs; raw recordings are bags, shards are Parquet
     assert len(list((wd / "results/logs").rglob("*.log"))) > 10

@@ -153,11 +153,10 @@ def cmd_tool_split(args) -> None:
     import pandas as pd
     from tactilepipe.atomic import write_json
     from tactilepipe.tool.splits import make_split
-    p = _params(args, "seed", "tool_split.fractions", "tool_split.holdout_tool", "tool_split.holdout_pose")
+    p = _params(args, "seed", "tool_split.fractions", "tool_split.holdout_pose")
     sp = p["tool_split"]
     samples = pd.read_parquet(Path(args.data_dir) / "samples.parquet")
-    split = make_split(samples, args.split, args.label, p["seed"], tuple(sp["fractions"]),
-                       sp["holdout_tool"], sp["holdout_pose"])
+    split = make_split(samples, args.split, args.label, p["seed"], tuple(sp["fractions"]), sp["holdout_pose"])
     write_json(args.out, split)
 
 
@@ -175,8 +174,9 @@ def cmd_tool_train(args) -> None:
 
 def cmd_tool_report(args) -> None:
     from tactilepipe.tool.report_models import build_model_report
-    p = _params(args, "tool_train.variants")
-    build_model_report(Path(args.in_dir), args.scene, p["tool_train"]["variants"], args.sweep or [])
+    p = _params(args, "tool_train.variants", "tool_train.split", "tool_train.depth", "tool_train.image_size",
+                "tool_train.sweep")
+    build_model_report(Path(args.in_dir), args.scene, p["tool_train"], args.runs)
     _write_provenance(args, Path(args.in_dir))
 
 
@@ -382,7 +382,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("tool-split", parents=[common], help="train/validation/test split of a tool dataset")
     s.add_argument("--data-dir", required=True)
-    s.add_argument("--split", choices=["frame", "public_frame", "trial", "loto", "lopo"], required=True)
+    s.add_argument("--split", required=True, help="frame | public_frame | trial | lopo, each with an optional _r<k> "
+                                                  "(repeat k); or loto_<tool>")
     s.add_argument("--label", choices=["normal", "shear"], required=True)
     s.add_argument("--out", required=True)
     s.set_defaults(func=cmd_tool_split)
@@ -401,7 +402,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("tool-report", parents=[common, provenance], help="metrics.json, tables and figures of the tool models")
     s.add_argument("--scene", choices=["tool_normal", "tool_shear"], required=True)
     s.add_argument("--in-dir", required=True)
-    s.add_argument("--sweep", nargs="*", help="extra runs (backbone/size) for the error-against-run-time plot")
+    s.add_argument("--runs", nargs="+", required=True,
+                   help="every run of the scene (results/<scene>/models/<run>; names as in tool/runs.py)")
     s.set_defaults(func=cmd_tool_report)
 
     s = sub.add_parser("predict", parents=[common], help="stream a recorded trial through a trained model")

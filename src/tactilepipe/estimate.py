@@ -114,7 +114,7 @@ def estimate_report(p: dict, jobs: Iterable[Job], run_spec: Callable | None = No
     train = by_rule.get("tool_train", [])
     if train and run_spec is not None:
         lines += ["", "Modelled training (tool_train; epochs = max_epochs, early stopping ends sooner):",
-                  f"{'scene':<12} {'run':<16} {'variant':<8} {'depth':>5} {'px':>4} {'pairs':>7} "
+                  f"{'scene':<12} {'run':<24} {'variant':<8} {'depth':>5} {'px':>4} {'pairs':>7} "
                   f"{'GFLOP/pair':>10} {'PFLOP':>8} {'on 1 GPU':>10} {'CPU core-h':>11}  device"]
         tot_gpu_h = tot_core_h = 0.0
         over_limit = []
@@ -122,7 +122,7 @@ def estimate_report(p: dict, jobs: Iterable[Job], run_spec: Callable | None = No
             variant, _split, depth, size = run_spec(w["run"])
             pairs = planned_pairs(p, w["scene"], root)
             if pairs is None:
-                lines.append(f"{w['scene']:<12} {w['run']:<16} {variant:<8} {depth:>5} {size:>4}   (pairs unknown "
+                lines.append(f"{w['scene']:<12} {w['run']:<24} {variant:<8} {depth:>5} {size:>4}   (pairs unknown "
                              "until the real recordings are ingested)")
                 continue
             t = training_flops(p, pairs, variant, depth, size)
@@ -134,10 +134,10 @@ def estimate_report(p: dict, jobs: Iterable[Job], run_spec: Callable | None = No
             wall_h = gpu_h if on_gpu else core_h / max(threads, 1)
             if wall_h * 60 > r.get("runtime", float("inf")):
                 over_limit.append(f"{w['scene']}/{w['run']} ({_fmt_h(wall_h)} > limit {_fmt_h(r['runtime'] / 60)})")
-            lines.append(f"{w['scene']:<12} {w['run']:<16} {variant:<8} {depth:>5} {size:>4} {pairs:>7,} "
+            lines.append(f"{w['scene']:<12} {w['run']:<24} {variant:<8} {depth:>5} {size:>4} {pairs:>7,} "
                          f"{t['forward_gflop']:>10.2f} {t['flop'] / 1e15:>8.1f} {_fmt_h(gpu_h):>10} "
                          f"{core_h:>11,.1f}  {'GPU' if on_gpu else 'CPU'}")
-        lines.append(f"{'total':<12} {'':<16} {'':<8} {'':>5} {'':>4} {'':>7} {'':>10} {'':>8} "
+        lines.append(f"{'total':<12} {'':<24} {'':<8} {'':>5} {'':>4} {'':>7} {'':>10} {'':>8} "
                      f"{_fmt_h(tot_gpu_h):>10} {tot_core_h:>11,.1f}")
         if over_limit:
             lines.append("warning: modelled time above the job's time limit (raise resources.rules.tool_train."

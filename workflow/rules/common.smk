@@ -13,8 +13,10 @@ from tactilepipe.errors import TactilepipeError
 from tactilepipe.volume.labels import read_session_labels
 from tactilepipe.volume.simulate import session_plan
 from tactilepipe.drift.simulate import session_plan as drift_plan
-from tactilepipe.tool.importers import TRIALS_CSV, list_trials as list_tool_trials
+from tactilepipe.tool.importers import TRIALS_CSV, list_trials as list_tool_trials, public_trial_meta, read_trials_csv
 from tactilepipe.tool.simulate import session_plan as tool_plan
+from tactilepipe.tool import runs as run_names
+from tactilepipe.tool.splits import split_name
 from tactilepipe.tool.digit_background import background_path
 
 # `config` is params.yaml plus any --config overrides; validate and resolve the scale up front
@@ -54,6 +56,10 @@ def tool_background_frame():
 PARAM_STAMPS = "results/params"
 
 
+def _plain(params):
+    return json.loads(json.dumps(params))
+
+
 def param_stamp(stage, *graph_keys):
     """results/params/<stage>.json: the values of the parameters the CLI stage declares (its only
     way in) and of ``graph_keys``, the ones the rules read to decide which jobs exist or what their
@@ -63,7 +69,7 @@ def param_stamp(stage, *graph_keys):
     the dvc.yaml generator reads the stage and the keys from it."""
     keys = codedeps.stage_param_keys(stage)
     stamp = {"stage": stage, "declared": list(keys), "graph": list(graph_keys),
-             "values": json.loads(json.dumps(deep_merge(declared(P, keys, stage), declared(P, graph_keys, "workflow"))))}
+             "values": deep_merge(_plain(declared(P, keys, stage)), _plain(declared(P, graph_keys, "workflow")))}
     path = Path(PARAM_STAMPS) / f"{stage}.json"
     text = json.dumps(stamp, indent=1, sort_keys=True) + "\n"
     if not path.is_file() or path.read_text() != text:
@@ -223,16 +229,31 @@ def tool_trial_input(w):
     return files
 
 
-def _tool_kind(session, name):
+def _tool_trial_meta(session, name):
+    """(kind, tool) of a trial, from the simulator's plan or the trial's own metadata."""
     if is_simulated(session):
-        return next(t.kind for t in tool_plan(P) if t.name == name)
+        t = next(t for t in tool_plan(P) if t.name == name)
+        return t.kind, t.tool
     path, fmt = _tool_trial(session, name)
     if fmt == "native":
-        return json.loads((Path(path) / "meta.json").read_text())["kind"]
+        meta = json.loads((Path(path) / "meta.json").read_text())
+        return meta["kind"], meta["tool"]
     if fmt == "public":
-        return "normal" if "data_normal" in path else "shear"
+        meta = public_trial_meta(read_trials_csv(f"raw/tool/{session}"), Path(path))
+        return ("normal" if "data_normal" in path else "shear"), meta["tool"]
     from tactilepipe.tool.rosbag_import import read_sidecar_meta
-    return read_sidecar_meta(path)["kind"]
+    meta = read_sidecar_meta(path)
+    return meta["kind"], meta["tool"]
+
+
+def _tool_kind(session, name):
+    return _tool_trial_meta(session, name)[0]
+
+
+def tool_names(kind):
+    """The tools of a target's trials (each is left out in turn by the leave-one-tool-out runs)."""
+    return sorted({_tool_trial_meta(s, name)[1] for s in P["tool_sessions"] for name in tool_trial_names(s)
+                   if _tool_kind(s, name) == kind})
 
 
 def tool_shards(kind):
@@ -248,8 +269,9 @@ def tool_raw_inputs(kind):
 
 TOOL_DATA_FIGURES = ["force_histogram", "force_profiles", "rmse_vs_force", "pressing_strip"]
 TOOL_MODEL_FIGURES = ["sorted_predictions", "over_time", "per_tool", "window_heatmap", "regression",
-                      "error_vs_runtime"]
-TOOL_MODEL_TABLES = ["variants", "per_tool", "per_window", "runtime"]
+                      "error_vs_runtime", "intervals"] + (["loto"] if P["tool_train"]["loto"] else [])
+TOOL_MODEL_TABLES = ["variants", "intervals", "differences", "per_tool", "per_window", "runtime"] + \
+    (["loto"] if P["tool_train"]["loto"] else [])
 
 
 def tool_clock_figures():
@@ -257,11 +279,18 @@ def tool_clock_figures():
     return [f"results/tool/qc/{s}_clock_sync.png" for s in P["tool_sessions"]]
 
 
+def tool_split_names(scene):
+    """Every split file of a tool scene: each repeat of the drawn splits, one per held-out tool, lopo."""
+    kind = TOOL_TARGETS[scene][0]
+    return [split_name(k, r) for k in ("frame", "trial") for r in range(P["tool_split"]["repeats"])] + \
+        [f"loto_{t}" for t in tool_names(kind)] + ["lopo"]
+
+
 def tool_data_targets(scene):
     """QC report, data figures and every split of a tool scene (no model)."""
     return [f"results/{scene}/qc.md"] + tool_clock_figures() + \
         [f"results/{scene}/figures/{fig}.png" for fig in TOOL_DATA_FIGURES] + \
-        [f"results/{scene}/splits/{split}.json" for split in ("frame", "trial", "loto", "lopo")]
+        [f"results/{scene}/splits/{split}.json" for split in tool_split_names(scene)]
 
 
 def tool_model_targets(scene):
@@ -300,6 +329,7 @@ def reported(files, scene):
             out.append(f)
             continue
         kind = {".png": "figures", ".json": "metrics"}.get(p.suffix, "tables")
-        stem = f"{p.stem}_table" if (group, p.stem, p.suffix) == ("tool", "per_tool", ".md") else p.stem
+        # a tool table named like a figure has its own caption
+        stem = f"{p.stem}_table" if group == "tool" and p.suffix == ".md" and p.stem in TOOL_MODEL_FIGURES else p.stem
         out.append(report(f, caption=f"../report/{group}/{stem}.rst", category=scene, subcategory=kind))
     return out

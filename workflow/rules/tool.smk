@@ -3,7 +3,7 @@
 # (sync, references, decoded arrays) -> splits, QC report and data figures.
 
 TOOL_TARGETS = {"tool_normal": ("normal", "normal"), "tool_shear": ("shear", "shear")}
-TOOL_SPLITS = ["frame", "trial", "loto", "lopo", "public_frame"]   # public_frame: study000.smk only
+SPLIT_NAME = "(frame|public_frame|trial|lopo)(_r[1-9][0-9]*)?|loto_[A-Za-z0-9_-]+"   # tool/splits.py; public_frame: study000.smk
 
 
 rule simulate_tool:
@@ -92,7 +92,7 @@ rule tool_split:
         "results/{scene}/splits/{split}.json",
     wildcard_constraints:
         scene="tool_normal|tool_shear",
-        split="|".join(TOOL_SPLITS),
+        split=SPLIT_NAME,
     params:
         label=lambda w: TOOL_TARGETS[w.scene][1],
     resources:
@@ -130,33 +130,18 @@ rule tool_data:
         tool_data_targets("tool_normal") + tool_data_targets("tool_shear"),
 
 
-# --- models (issue: tool-force scene, part 2) --------------------------------------------------
-# Runs: each variant on the default split; "full_loto" (full model, leave-one-tool-out);
-# "full_d<depth>_s<size>" (full model, other backbone depth / input size, for error vs run time).
+# --- models ------------------------------------------------------------------------------------
+# Runs (tool/runs.py): each variant on every repeat of the default split, the full model leaving
+# out each tool in turn, and the sweep (other depth / input size, for error against run time).
 
 
-def tool_runs():
-    tt = P["tool_train"]
-    runs = list(tt["variants"]) + (["full_loto"] if tt["loto"] else [])
-    return runs + [sweep_run_name(s) for s in tt["sweep"]]
-
-
-def sweep_run_name(s):
-    return f"full_d{s['depth']}_s{s['image_size']}"
+def tool_runs(scene):
+    return run_names.tool_runs(P["tool_train"], P["tool_split"]["repeats"], tool_names(TOOL_TARGETS[scene][0]))
 
 
 def run_spec(run):
     """(variant, split, depth, image_size) of a run name."""
-    tt = P["tool_train"]
-    size = tt["image_size"]
-    if run == "full_loto":
-        return "full", "loto", tt["depth"], size
-    if run.startswith("full_") and run[len("full_"):] in TOOL_SPLITS:   # full model on another split (study000.smk)
-        return "full", run[len("full_"):], tt["depth"], size
-    for s in tt["sweep"]:
-        if run == sweep_run_name(s):
-            return "full", tt["split"], s["depth"], s["image_size"]
-    return run, tt["split"], tt["depth"], size
+    return run_names.run_spec(P["tool_train"], run)
 
 
 rule tool_train:
@@ -175,7 +160,7 @@ rule tool_train:
         run="[a-z_0-9]+",
     params:
         spec=lambda w: run_spec(w.run),
-    threads: 2
+    threads: P["tool_train"]["num_threads"]
     resources:
         **rule_resources("tool_train"),
     log:
@@ -188,13 +173,14 @@ rule tool_train:
 
 rule tool_model_report:
     input:
-        runs=lambda w: expand("results/{scene}/models/{run}/{f}", scene=w.scene, run=tool_runs(),
+        runs=lambda w: expand("results/{scene}/models/{run}/{f}", scene=w.scene, run=tool_runs(w.scene),
                               f=["eval.json", "predictions.parquet"]),
+        splits=lambda w: [f"results/{w.scene}/splits/{run_spec(r)[1]}.json" for r in tool_runs(w.scene)],
         data=rules.tool_dataset.output,
         raw=lambda w: tool_raw_inputs(TOOL_TARGETS[w.scene][0]),
         code=stage_code("cmd_tool_report"),
         params=param_stamp("cmd_tool_report", "tool_sessions", "tool_train.split", "tool_train.depth",
-                           "tool_train.image_size", "tool_train.sweep", "tool_train.loto"),
+                           "tool_train.image_size", "tool_train.sweep", "tool_train.loto", "tool_split.repeats"),
         provenance=lambda w: provenance_inputs(w.scene),
     output:
         metrics=reported(["results/{scene}/metrics.json"], "{scene}")[0],
@@ -205,7 +191,7 @@ rule tool_model_report:
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     params:
-        sweep=[sweep_run_name(s) for s in P["tool_train"]["sweep"]],
+        runs=lambda w: tool_runs(w.scene),
         provenance=lambda w: provenance_args(w.scene),
     resources:
         **rule_resources("tool_model_report"),
@@ -213,4 +199,4 @@ rule tool_model_report:
         "results/logs/{scene}/model_report.log",
     shell:
         "{CLI} tool-report {PARAMS_ARGS} --scene {wildcards.scene} --in-dir results/{wildcards.scene} "
-        "--sweep {params.sweep} {params.provenance} 2> {log:q}"
+        "--runs {params.runs} {params.provenance} 2> {log:q}"

@@ -134,20 +134,78 @@ def regression_grid(preds: dict[str, pd.DataFrame], metrics: dict[str, dict], la
 
 
 def pareto(runs: pd.DataFrame, out: Path) -> None:
-    """Error against run time: MAE vs training time and vs inference latency for every model trained."""
-    fig, axes = figure(8.0, 3.2, ncols=2)
-    for ax, col, xlabel in ((axes[0], "train_s", "training wall time (s, 2 CPU cores)"),
+    """Error against run time: MAE vs training time and vs inference latency for every model trained
+    (columns run, variant, split, mae, train_s, latency_ms). Repeats and leave-one-tool-out runs are
+    drawn small and unlabelled, so the spread of one setting shows beside its cost."""
+    fig, axes = figure(8.0, 3.4, ncols=2)
+    labelled = ~runs["split"].str.contains(r"_r[0-9]+$|^loto_", regex=True)
+    for ax, col, xlabel in ((axes[0], "train_s", "training wall time (s, CPU)"),
                             (axes[1], "latency_ms", "inference latency per frame pair (ms, batch 1)")):
-        for row in runs.itertuples():
-            ax.plot(getattr(row, col), row.mae, "o", color=VARIANT_COLORS.get(row.variant, "#4C72B0"))
-            ax.annotate(row.name_, (getattr(row, col), row.mae), fontsize=7, xytext=(3, 3), textcoords="offset points")
-        pts = runs.sort_values(col)
+        for row, main in zip(runs.itertuples(), labelled):
+            loto = row.split.startswith("loto_")
+            ax.plot(getattr(row, col), row.mae, "x" if loto else "o", ms=6 if main else 4, alpha=1.0 if main else 0.5,
+                    color=VARIANT_COLORS.get(row.variant, "#4C72B0"))
+            if main:
+                ax.annotate(row.run, (getattr(row, col), row.mae), fontsize=7, xytext=(3, 3), textcoords="offset points")
+        pts = runs[~runs["split"].str.startswith("loto_")].sort_values(col)
         front = pts[pts["mae"] <= pts["mae"].cummin()]
         ax.step(front[col], front["mae"], where="post", color="grey", lw=1, ls="--", label="Pareto front")
+        ax.plot([], [], "o", color="0.5", ms=4, alpha=0.5, label="other repeats")
+        ax.plot([], [], "x", color="0.5", label="leave-one-tool-out")
         ax.set_xscale("log")
         ax.set_xlabel(xlabel)
         ax.set_ylabel("test MAE (N)")
         ax.legend(fontsize=7)
-    fig.suptitle("Error against run time")
+    fig.suptitle("Error against run time: every run")
+    save_figure(out, fig)
+    close(fig)
+
+
+BASELINE_LABELS = {"mean_predictor": "mean predictor", "tactile_rmse_linear": "tactile RMSE (own reference)",
+                   "rest_frame_rmse_linear": "tactile RMSE (mean rest frame)",
+                   "one_finger_rmse_linear": "tactile RMSE (one finger)"}
+
+
+def interval_bars(scores: dict[str, dict[str, list[float]]], summary: dict[str, dict], label: str, out: Path) -> None:
+    """Variants and baselines over the repeated splits: mean with its 95 % interval, and each split's
+    value as a dot; MAE and R² side by side."""
+    names = list(scores)
+    fig, axes = figure(8.5, 0.42 * len(names) + 1.4, ncols=2, sharey=True)
+    y = np.arange(len(names))[::-1]
+    for ax, m, title in ((axes[0], "mae", f"MAE of {label} force (N)"), (axes[1], "r2", "R²")):
+        for yi, name in zip(y, names):
+            s = summary[name][m]
+            color = VARIANT_COLORS.get(name, "0.45")
+            if np.isfinite(s["low"]):
+                ax.plot([s["low"], s["high"]], [yi, yi], "-", lw=2.5, color=color, alpha=0.6)
+            ax.plot(s["mean"], yi, "D", ms=6, color=color)
+            ax.plot(scores[name][m], np.full(len(scores[name][m]), yi) + 0.18, ".", ms=4, color="k", alpha=0.6)
+        ax.set_xlabel(title)
+        if m == "r2":
+            ax.set_xlim(max(-0.2, ax.get_xlim()[0]), 1.0)
+    axes[0].set_yticks(y, [VARIANT_LABELS.get(n, BASELINE_LABELS.get(n, n)) for n in names], fontsize=8)
+    n = summary[names[0]]["mae"]["n"]
+    fig.suptitle(f"Over {n} repeated trial splits: mean (◆), 95 % interval (bar), each split (•)")
+    save_figure(out, fig)
+    close(fig)
+
+
+def loto_bars(loto: dict, label: str, out: Path) -> None:
+    """Full model, leave-one-tool-out: MAE and R² per held-out tool, with the mean over tools and its
+    95 % interval as a band."""
+    tools = list(loto["per_tool"])
+    fig, axes = figure(7.5, 3.0, ncols=2)
+    for ax, m, title in ((axes[0], "mae", f"MAE of {label} force (N)"), (axes[1], "r2", "R²")):
+        ax.bar(range(len(tools)), [loto["per_tool"][t][m] for t in tools], color=VARIANT_COLORS["full"], alpha=0.8)
+        s = loto["over_tools"][m]
+        ax.axhline(s["mean"], color="k", lw=1, label=f"mean {s['mean']:.3f}")
+        if np.isfinite(s["low"]):
+            ax.axhspan(s["low"], s["high"], color="0.5", alpha=0.2, label="95 % interval")
+        ax.set_xticks(range(len(tools)), [t.replace("_", " ") for t in tools], fontsize=8)
+        ax.set_ylabel(title)
+        ax.legend(fontsize=7)
+    axes[0].set_xlabel("held-out tool")
+    axes[1].set_xlabel("held-out tool")
+    fig.suptitle("Full model, each tool left out of training in turn")
     save_figure(out, fig)
     close(fig)

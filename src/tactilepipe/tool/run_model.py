@@ -23,6 +23,7 @@ def train_and_predict(scene: str, data_dir: Path, split_path: Path, out_dir: Pat
     label, normalise = LABELS[scene]
     data = ToolFrames(data_dir, label).resized(image_size)
     split = json.loads(Path(split_path).read_text())
+    seed += split["repeat"]          # each repeat of a split draws its own model seed too
     cfg = TrainConfig(variant=variant, depth=depth, image_size=image_size, lr=tp["lr"], lr_schedule=tp["lr_schedule"],
                       batch_size=tp["batch_size"],
                       max_epochs=tp["max_epochs"], patience=tp["patience"], seed=seed, device=tp["device"],

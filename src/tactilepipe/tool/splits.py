@@ -7,12 +7,16 @@
 - ``trial`` (default): whole trials go to one split, 70/15/15 by frame count, stratified by tool
   when every tool has at least 3 trials (each tool then has trials in every split, so the per-tool
   errors are measured on every tool and no tool is learnt from one or two grasps).
-- ``loto``: leave one tool out (the held-out tool is the test set).
+- ``loto_<tool>``: leave that tool out (the tool is the test set).
 - ``lopo``: leave one grasp pose out (one pose of every tool is the test set).
+- ``<kind>_r<k>`` (k >= 1): repeat k of a drawn split, from its own seed, so that a score can be
+  reported over several draws (``tool_split.repeats``); the unsuffixed name is repeat 0.
 Label normalisation statistics are computed from the training split only (but for public_frame).
 """
 
 from __future__ import annotations
+
+import re
 
 import numpy as np
 import pandas as pd
@@ -54,21 +58,43 @@ def _trial_split(samples: pd.DataFrame, fractions, rng) -> tuple[np.ndarray, ...
     return tuple(np.sort(np.concatenate(p)) for p in parts)
 
 
+KINDS = ("frame", "public_frame", "trial", "loto", "lopo")
+
+
+def parse_split_name(name: str) -> tuple[str, int, str | None]:
+    """(kind, repeat, held-out tool) of a split name: ``trial``, ``trial_r2``, ``loto_spatula``, ..."""
+    if name.startswith("loto_") and len(name) > len("loto_"):
+        return "loto", 0, name[len("loto_"):]
+    m = re.fullmatch(r"([a-z_]+?)(?:_r([1-9][0-9]*))?", name)
+    if not m or m.group(1) not in KINDS or m.group(1) == "loto":
+        raise InputError("splits", f"unknown split '{name}' (one of {', '.join(k for k in KINDS if k != 'loto')}, "
+                                   f"each optionally with _r<k> for repeat k; or loto_<tool>)")
+    return m.group(1), int(m.group(2) or 0), None
+
+
+def split_name(kind: str, repeat: int) -> str:
+    """The file name (without .json) of repeat ``repeat`` of a split kind."""
+    return kind if repeat == 0 else f"{kind}_r{repeat}"
+
+
 def label_stats(labels: np.ndarray) -> dict:
     return {"min": float(labels.min()), "max": float(labels.max()), "mean": float(labels.mean()),
             "std": float(labels.std()) or 1.0}
 
 
 def make_split(samples: pd.DataFrame, name: str, label: str, seed: int, fractions=(0.7, 0.15, 0.15),
-               holdout_tool: str | None = None, holdout_pose: int = 0) -> dict:
-    rng = np.random.default_rng(np.random.SeedSequence([seed, 31337]))
-    if name in ("frame", "public_frame"):
+               holdout_pose: int = 0) -> dict:
+    """The split ``name`` (see ``parse_split_name``) of ``samples``; repeat k draws from its own
+    seed sequence, and repeat 0 from the one every earlier result used."""
+    kind, repeat, holdout_tool = parse_split_name(name)
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 31337] + ([repeat] if repeat else [])))
+    if kind in ("frame", "public_frame"):
         idx = rng.permutation(len(samples))
         a, b = int(fractions[0] * len(idx)), int((fractions[0] + fractions[1]) * len(idx))
         train, val, test = np.sort(idx[:a]), np.sort(idx[a:b]), np.sort(idx[b:])
-    elif name == "trial":
+    elif kind == "trial":
         train, val, test = _trial_split(samples, fractions, rng)
-    elif name == "loto":
+    elif kind == "loto":
         tools = sorted(samples["tool"].unique())
         if holdout_tool not in tools:
             raise InputError("splits", f"held-out tool '{holdout_tool}' is not in the data ({tools})")
@@ -76,7 +102,7 @@ def make_split(samples: pd.DataFrame, name: str, label: str, seed: int, fraction
         rest = samples[samples["tool"] != holdout_tool]
         tr, va = _two_way(rest["trial"], 0.85, rng)
         train, val = rest.index.to_numpy()[tr], rest.index.to_numpy()[va]
-    elif name == "lopo":
+    elif kind == "lopo":
         rank = samples.groupby("tool")["pose"].transform(lambda p: p.map({v: i for i, v in enumerate(sorted(p.unique()))}))
         test = np.flatnonzero(rank == holdout_pose)
         if len(test) == 0:
@@ -84,10 +110,8 @@ def make_split(samples: pd.DataFrame, name: str, label: str, seed: int, fraction
         rest = samples[rank != holdout_pose]
         tr, va = _two_way(rest["trial"], 0.85, rng)
         train, val = rest.index.to_numpy()[tr], rest.index.to_numpy()[va]
-    else:
-        raise InputError("splits", f"unknown split '{name}' (frame, public_frame, trial, loto, lopo)")
-    stats_rows = np.arange(len(samples)) if name == "public_frame" else train
-    return {"name": name, "leaky": name in ("frame", "public_frame"), "label": label,
+    stats_rows = np.arange(len(samples)) if kind == "public_frame" else train
+    return {"name": name, "kind": kind, "repeat": repeat, "leaky": kind in ("frame", "public_frame"), "label": label,
             "train": train.tolist(), "validation": val.tolist(), "test": test.tolist(),
             "label_stats": label_stats(samples[label].to_numpy()[stats_rows]),
             "trials": {k: sorted(samples["trial"].iloc[v].unique().tolist())
