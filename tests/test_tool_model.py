@@ -450,6 +450,21 @@ def test_a_verdict_needs_both_improvements_separated_from_zero_over_the_draws():
     assert versus({"mae": [1.0], "r2": [0.9]}, {"mae": [2.0], "r2": [0.5]}, 0.0)["beats"] is False
 
 
+def test_the_studys_orderings_are_judged_holds_reversed_or_undecided():
+    from tactilepipe.tool.verdicts import paper_orderings
+    scores = {"full": {"mae": [0.5, 0.6, 0.7]}, "no_gam": {"mae": [0.6, 1.6, 0.8]},
+              "no_ref": {"mae": [1.5, 1.6, 1.7]}, "single": {"mae": [1.0, 1.1, 1.2]}}
+    got = {(r["better"], r["worse"]): r for r in paper_orderings("tool_normal", scores, 0.0)}
+    assert set(got) == {("full", "no_gam"), ("full", "no_ref"), ("full", "single"), ("no_gam", "no_ref"),
+                        ("no_ref", "single")}
+    assert got[("full", "no_ref")]["verdict"] == "holds"          # differences 1.0, 1.0, 1.0
+    assert got[("full", "no_ref")]["mae_difference"] == pytest.approx(1.0)
+    assert got[("no_ref", "single")]["verdict"] == "reversed"     # single is better by 0.5 on every draw
+    assert got[("full", "no_gam")]["verdict"] == "undecided"      # 0.1, 1.0, 0.1: interval spans zero
+    assert [r["claim"] for r in paper_orderings("tool_shear", scores, 0.0)] == \
+        ["full < no_gam (MAE)", "full < no_ref (MAE)", "full < single (MAE)"]
+
+
 def test_the_like_for_like_baselines_see_what_their_variant_sees():
     from tactilepipe.tool.evaluate import (LIKE_FOR_LIKE, baselines, rest_frame_rmse_features,
                                            tactile_rmse_features)

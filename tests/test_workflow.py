@@ -114,6 +114,7 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_run: Path):
         # leave-one-tool-out: every tool of the smoke session held out in turn, with the mean over tools
         assert set(tm["loto"]["per_tool"]) == {"screwdriver_1", "paper_knife", "spatula"}
         assert tm["loto"]["over_tools"]["mae"]["n"] == 3
+        assert tm["paper_orderings"] and {o["verdict"] for o in tm["paper_orderings"]} <= {"holds", "reversed", "undecided"}
         runtime = json.loads((wd / f"results/{scene}/runtime.json").read_text())
         assert all(r["train_s"] > 0 and r["latency_ms"] > 0 for r in runtime.values()) and "full" in runtime
         prov = json.loads((wd / f"results/{scene}/provenance.json").read_text())
@@ -121,7 +122,8 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_run: Path):
         assert len(prov["sessions"]["raw/tool/sim-smoke"]) == 64
         assert prov["stages"]["cmd_tool_train"]["params"]["tool_train"]["lr"] > 0
         assert set(prov["environment"]["packages"]) == {"torch", "numpy", "scikit-learn", "pandas"}
-        for table in ("variants", "intervals", "differences", "per_tool", "per_window", "runtime", "loto"):
+        for table in ("variants", "intervals", "differences", "paper_orderings", "per_tool", "per_window", "runtime",
+                      "loto"):
             assert (wd / f"results/{scene}/tables/{table}.md").read_text().count("|") > 10
         assert len(runtime) == 4 * 2 + 3 + 1           # variants x repeats, one per held-out tool, the sweep
         for fig in ("sorted_predictions", "over_time", "per_tool", "window_heatmap", "regression",

@@ -270,7 +270,7 @@ def tool_raw_inputs(kind):
 TOOL_DATA_FIGURES = ["force_histogram", "force_profiles", "rmse_vs_force", "pressing_strip"]
 TOOL_MODEL_FIGURES = ["sorted_predictions", "over_time", "per_tool", "window_heatmap", "regression",
                       "error_vs_runtime", "intervals"] + (["loto"] if P["tool_train"]["loto"] else [])
-TOOL_MODEL_TABLES = ["variants", "intervals", "differences", "per_tool", "per_window", "runtime"] + \
+TOOL_MODEL_TABLES = ["variants", "intervals", "differences", "paper_orderings", "per_tool", "per_window", "runtime"] + \
     (["loto"] if P["tool_train"]["loto"] else [])
 
 

@@ -127,6 +127,7 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, runs: list
     metrics["ablation_order_by_mae"] = [r["method"] for r in rows]
     metrics["ablation_ranking_by_mae"] = text
     metrics["ablation_ranking_rows"] = rows
+    metrics["paper_orderings"] = verdicts.paper_orderings(scene, {v: scores[v] for v in variants}, ratio)
     metrics["beats_baselines"] = {v: metrics[v]["beats_baselines"] for v in variants}
     metrics["every_variant_beats_baselines"] = all(metrics["beats_baselines"].values())
     metrics["split"] = split_names[0]
@@ -158,6 +159,9 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, runs: list
                 "mean ± std and 95 % interval (Nadeau-Bengio corrected)", "{:.3f}")
     write_table(_differences_table(metrics, variants), tables / "differences",
                 f"{scene}: paired differences over the {k_repeats} repeats, 95 % intervals", "{:.3f}")
+    write_table(pd.DataFrame(metrics["paper_orderings"]).drop(columns=["better", "worse"]), tables / "paper_orderings",
+                f"{scene}: the study's orderings of the variants, judged on the paired MAE difference (worse − better) "
+                f"over the {k_repeats} repeats", "{:.3f}")
     pt = pd.concat([pd.DataFrame(evals[plan.repeats[v][0]]["per_tool"]).assign(model=v) for v in variants],
                    ignore_index=True)
     pw = pd.concat([pd.DataFrame(evals[plan.repeats[v][0]]["per_window"]).assign(model=v) for v in variants],

@@ -13,6 +13,16 @@ from tactilepipe.intervals import interval, paired_difference, ranking, ranking_
 
 METRICS = ("mae", "rmse", "r2")
 
+# The orderings study 000 reports for its ablations ("Grasp Independent Indirect Tool Force
+# Estimation using Vision-based Tactile Sensors", Li and Thuruthel), as (better, worse) pairs. Normal
+# force: the full model is best; dropping the reference frame costs more than dropping attention;
+# one sensor is worst. Shear force: the full model is best on every metric.
+PAPER_ORDERINGS = {
+    "tool_normal": [("full", "no_gam"), ("full", "no_ref"), ("full", "single"), ("no_gam", "no_ref"),
+                    ("no_ref", "single")],
+    "tool_shear": [("full", "no_gam"), ("full", "no_ref"), ("full", "single")],
+}
+
 
 def over_draws(scores: dict[str, list[float]], test_train_ratio: float) -> dict[str, dict]:
     """Per metric: mean, std and the 95 % interval over the draws."""
@@ -39,3 +49,17 @@ def order_by_mae(scores: dict[str, dict[str, list[float]]], test_train_ratio: fl
     rows = ranking({name: s["mae"] for name, s in scores.items()}, higher_is_better=False,
                    test_train_ratio=test_train_ratio)
     return rows, ranking_text(rows)
+
+
+def paper_orderings(scene: str, scores: dict[str, dict[str, list[float]]], test_train_ratio: float) -> list[dict]:
+    """Each of the study's orderings for this scene, judged on MAE over the draws: "holds" when the
+    paired interval of worse - better lies above zero, "reversed" when below, else "undecided"."""
+    out = []
+    for better, worse in PAPER_ORDERINGS[scene]:
+        if better not in scores or worse not in scores:
+            continue
+        d = paired_difference(scores[worse]["mae"], scores[better]["mae"], test_train_ratio=test_train_ratio)
+        verdict = "undecided" if not d["excludes_zero"] else "holds" if d["mean"] > 0 else "reversed"
+        out.append({"claim": f"{better} < {worse} (MAE)", "better": better, "worse": worse,
+                    "mae_difference": d["mean"], "low": d["low"], "high": d["high"], "verdict": verdict})
+    return out
