@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
-from tactilepipe.errors import InputError
+from tactilepipe.errors import ArgumentError, InputError
 from tactilepipe.tool import rosbag_import as ri
 from tactilepipe.tool.raw import RawTrial
 
@@ -299,7 +299,7 @@ def test_write_replaces_an_existing_bag_atomically(tmp_path, trial_data, fmt):
 def test_write_rejects_bad_arguments(tmp_path, trial_data):
     with pytest.raises(ValueError, match="fmt"):
         _write(tmp_path / "x", trial_data, "ros3", False)
-    with pytest.raises(ValueError, match="frames but"):
+    with pytest.raises(ArgumentError, match=r"digit_left: 10 frames but 5 stamps \(frames_left against frame_host_ns\)"):
         ri.write_ros_trial(tmp_path / "x.bag", trial_data["left"], None, trial_data["force_ns"],
                            trial_data["force_ns"], trial_data["force_n"], "ros1", False)
     assert list(tmp_path.iterdir()) == []
@@ -571,5 +571,6 @@ def test_topics_argument_is_checked(tmp_path, trial_data):
     bag = _write(tmp_path / "t.bag", trial_data, "ros1", True)
     with pytest.raises(ValueError, match="wrench"):
         ri.read_ros_trial(bag, META, {"digit_left": LEFT})
-    with pytest.raises(ValueError, match="distinct"):
+    with pytest.raises(ArgumentError, match=r"topics \(params.yaml tool_ingest.ros_topics\): topic names must be "
+                                            r"distinct"):
         ri.read_ros_trial(bag, META, {"digit_left": LEFT, "digit_right": LEFT, "wrench": WRENCH})

@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 import torch
 
-from tactilepipe.errors import TactilepipeError
+from tactilepipe.errors import ArgumentError, TactilepipeError
 from tactilepipe.tool.loader import ToolFrames
 from tactilepipe.tool.model import DEPTHS, MIN_IMAGE_SIZE, VARIANTS, TrimmedConv2d, build_model, count_parameters
 from tactilepipe.tool.splits import label_stats
@@ -71,14 +71,16 @@ def test_small_inputs_and_size_checks():
         model = build_model("full", 18, size)
         out = model(torch.rand(2, 4, size, size))            # training mode works with 2 samples
         assert out.shape == (2,)
-    with pytest.raises(ValueError, match="at least 8"):
+    with pytest.raises(ArgumentError, match="at least 8"):
         build_model("full", 18, MIN_IMAGE_SIZE - 1)
+    with pytest.raises(ArgumentError, match=r"image_size 32\.0 must be a whole number"):
+        build_model("full", 18, 32.0)
     model = build_model("full", 18, 32).eval()
     with pytest.raises(ValueError, match="32 px"):
         model(torch.rand(1, 4, 64, 64))
     with pytest.raises(ValueError, match="4, S, S"):
         model(torch.rand(1, 2, 32, 32))
-    with pytest.raises(ValueError, match="unknown model variant"):
+    with pytest.raises(ArgumentError, match="unknown model variant 'tiny'"):
         build_model("tiny", 18, 32)
     with pytest.raises(ValueError, match="depth"):
         build_model("full", 152, 32)

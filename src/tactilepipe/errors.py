@@ -28,3 +28,12 @@ class InputError(TactilepipeError):
 
 class ConfigError(TactilepipeError):
     """params.yaml (or an override) is invalid."""
+
+
+class ArgumentError(TactilepipeError, ValueError):
+    """A bad argument: names it and the values it may take (or what is wrong with it).
+
+    Also raised for malformed data handed to a function that does not know where it came from
+    (e.g. message bytes: "record 3: ..."); the caller that read the file re-raises it as an
+    InputError naming the file and the record. A ValueError as well, so ``except ValueError``
+    (argparse type functions, callers that wrap decoding errors) keeps working."""

@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from tactilepipe.errors import ArgumentError
+
 R2_CONSTANT = "undefined: the true values are constant (no variance to explain)"
 R2_EMPTY = "undefined: no samples"
 R2_NONFINITE = "undefined: NaN or inf among the true values or the predictions"
@@ -31,7 +33,7 @@ def r2_detail(y_true, y_pred) -> tuple[float, str | None]:
     y_true = np.asarray(y_true, np.float64).reshape(-1)
     y_pred = np.asarray(y_pred, np.float64).reshape(-1)
     if len(y_true) != len(y_pred):
-        raise ValueError(f"r2: {len(y_true)} true values but {len(y_pred)} predictions")
+        raise ArgumentError(f"r2: {len(y_true)} true values (y_true) but {len(y_pred)} predictions (y_pred)")
     if len(y_true) == 0:
         return float("nan"), R2_EMPTY
     if not np.isfinite(y_true).all():

@@ -13,6 +13,8 @@ from functools import lru_cache
 import numpy as np
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from tactilepipe.errors import ArgumentError
+
 SENSOR_STATE = "papillarray_ros_v2/msg/SensorState"
 PILLAR_STATE = "papillarray_ros_v2/msg/PillarState"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
@@ -155,13 +157,14 @@ def _string_len_at(raw: bytes, offset: int) -> int:
 def decode_sensor_states(raws: list[bytes]) -> dict[str, np.ndarray]:
     """Decode serialised SensorStates into arrays: stamp_ns (T,), force/disp (T, 9, 3), ...
 
-    Raises ValueError with the index of the first message that cannot be decoded.
+    Raises ArgumentError (a ValueError) "record <i>: <problem>" for the first message that cannot
+    be decoded; the caller that read the bag names it (shards.read_papillarray_bag: InputError).
     """
     if not raws:
         return _empty_sensor_arrays()
     first = raws[0]
     if len(first) < 16:
-        raise ValueError("record 0: message shorter than a ROS Header")
+        raise ArgumentError("record 0: message shorter than a ROS Header")
     fid_len = _string_len_at(first, 12)
     pillar_off = 16 + fid_len + 8 + 4
     pfid_len = _string_len_at(first, pillar_off + 12) if len(first) >= pillar_off + 16 else 0
@@ -206,9 +209,9 @@ def _decode_generic(raws: list[bytes]) -> dict[str, np.ndarray]:
         try:
             msg = store.deserialize_ros1(raw, SENSOR_STATE)
         except Exception as exc:  # rosbags raises several types for malformed bytes
-            raise ValueError(f"record {i}: cannot decode SensorState ({type(exc).__name__}: {exc})") from None
+            raise ArgumentError(f"record {i}: cannot decode SensorState ({type(exc).__name__}: {exc})") from None
         if len(msg.pillars) != N_PILLARS:
-            raise ValueError(f"record {i}: SensorState has {len(msg.pillars)} pillars, expected {N_PILLARS}")
+            raise ArgumentError(f"record {i}: SensorState has {len(msg.pillars)} pillars, expected {N_PILLARS}")
         out["stamp_ns"].append(_ros1_sec(msg.header.stamp.sec) * 1_000_000_000 + msg.header.stamp.nanosec)
         out["tus"].append(msg.tus)
         out["force"].append([(p.fX, p.fY, p.fZ) for p in msg.pillars])
@@ -221,7 +224,8 @@ def _decode_generic(raws: list[bytes]) -> dict[str, np.ndarray]:
 
 
 def decode_pose_stamped(raws: list[bytes]) -> tuple[np.ndarray, np.ndarray]:
-    """Return (stamp_ns (T,), position (T, 3)) of PoseStamped messages."""
+    """Return (stamp_ns (T,), position (T, 3)) of PoseStamped messages; ArgumentError
+    "record <i>: <problem>" for the first message that cannot be decoded."""
     if not raws:
         return np.zeros(0, np.int64), np.zeros((0, 3))
     fid_len = _string_len_at(raws[0], 12) if len(raws[0]) >= 16 else -1
@@ -235,7 +239,7 @@ def decode_pose_stamped(raws: list[bytes]) -> tuple[np.ndarray, np.ndarray]:
         try:
             msg = store.deserialize_ros1(raw, POSE_STAMPED)
         except Exception as exc:
-            raise ValueError(f"record {i}: cannot decode PoseStamped ({type(exc).__name__}: {exc})") from None
+            raise ArgumentError(f"record {i}: cannot decode PoseStamped ({type(exc).__name__}: {exc})") from None
         stamps.append(_ros1_sec(msg.header.stamp.sec) * 1_000_000_000 + msg.header.stamp.nanosec)
         pos.append((msg.pose.position.x, msg.pose.position.y, msg.pose.position.z))
     return np.asarray(stamps, np.int64), np.asarray(pos, float)

@@ -52,6 +52,14 @@ def _check_stream(path: Path, topic: str, dec: dict) -> None:
         raise InputError(path, f"{kind} header timestamp", f"{topic} message {i}")
 
 
+def _decode_error(path: Path, topic: str, exc: ValueError) -> InputError:
+    """InputError naming the bag and the message of a decoder's "record <i>: <problem>"."""
+    record, sep, problem = str(exc).partition(": ")
+    if sep and record.startswith("record "):
+        return InputError(path, problem, f"{topic} {record}")
+    return InputError(path, str(exc), topic)
+
+
 def read_papillarray_bag(path: str | Path, hub: int = 0, pose_topic: str = DEFAULT_POSE_TOPIC) -> dict:
     """Decode a bag into {"sensors": {0: arrays, 1: arrays}, "pose": (stamps, z) or None}."""
     path = Path(path)
@@ -66,8 +74,8 @@ def read_papillarray_bag(path: str | Path, hub: int = 0, pose_topic: str = DEFAU
     for topic in found:
         try:
             dec = pa.decode_sensor_states(raw[topic][1])
-        except ValueError as exc:
-            raise InputError(path, str(exc).split(": ", 1)[-1], f"{topic} {str(exc).split(':')[0]}") from None
+        except ValueError as exc:         # ArgumentError "record <i>: ..." (or numpy's on odd bytes)
+            raise _decode_error(path, topic, exc) from None
         _check_stream(path, topic, dec)
         sensors[topics[topic]] = dec
     pose = None
@@ -75,7 +83,7 @@ def read_papillarray_bag(path: str | Path, hub: int = 0, pose_topic: str = DEFAU
         try:
             stamps, pos = pa.decode_pose_stamped(raw[pose_topic][1])
         except ValueError as exc:
-            raise InputError(path, str(exc), pose_topic) from None
+            raise _decode_error(path, pose_topic, exc) from None
         if not np.isfinite(pos).all():
             raise InputError(path, "pose contains NaN or inf", pose_topic)
         pose = (stamps, pos[:, 2])

@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from tactilepipe.errors import ArgumentError
 from tactilepipe.tool.digit_background import led_azimuths, load_background, shading_level
 from tactilepipe.tool.layout import FRAME_H, FRAME_W
 
@@ -125,7 +126,7 @@ class HandleProfile:
 
     def __post_init__(self):
         if self.texture not in TEXTURES:
-            raise ValueError(f"texture '{self.texture}' must be one of {TEXTURES}")
+            raise ArgumentError(f"texture '{self.texture}' must be one of {TEXTURES}")
 
 
 def _texture_gap(profile: HandleProfile, s: np.ndarray, d: np.ndarray, roll: float,

@@ -26,8 +26,9 @@ global pool). ``full`` at depth 101: 57,297,665 parameters (the paper: about 57 
 Input sizes: the encoder halves the image three times (S/8); the ResNet stem divides by 4 and
 its stages by 8 more, every stride-2 step rounding up, and the global pool is adaptive. So any
 S >= MIN_IMAGE_SIZE (8: the encoder's third pool needs a 2x2 map) runs; below it build_model and
-forward raise ValueError. Even at 224 px the published design reaches 1x1 in the last ResNet
-stage (28 / 32); at 64 px the maps are 1x1 from the second stage on, at 32 px from the first.
+forward raise ArgumentError (a TactilepipeError, and a ValueError), which the CLI prints as one
+line. Even at 224 px the published design reaches 1x1 in the last ResNet stage (28 / 32); at
+64 px the maps are 1x1 from the second stage on, at 32 px from the first.
 With 1x1 maps, BatchNorm in training mode needs at least 2 samples per batch (the trainer skips
 a trailing batch of one sample).
 """
@@ -39,6 +40,8 @@ from dataclasses import dataclass
 
 import torch
 from torch import nn
+
+from tactilepipe.errors import ArgumentError
 
 MIN_IMAGE_SIZE = 8
 GAM_CHANNEL_GATES = ("sigmoid", "none")
@@ -248,9 +251,11 @@ class ToolForceNet(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         if x.ndim != 4 or x.shape[1] != 4:
-            raise ValueError(f"expected input (batch, 4, S, S) [left, left_ref, right, right_ref], got {tuple(x.shape)}")
+            raise ArgumentError(f"forward: expected input x (batch, 4, S, S) [left, left_ref, right, right_ref], "
+                                f"got {tuple(x.shape)}")
         if tuple(x.shape[2:]) != (self.image_size, self.image_size):
-            raise ValueError(f"model built for {self.image_size} px inputs, got {tuple(x.shape[2:])}")
+            raise ArgumentError(f"forward: model built for {self.image_size} px inputs, got input x of "
+                                f"{tuple(x.shape[2:])}")
         feats = [gam(enc(x[:, a:b])) for (a, b), enc, gam in zip(self.slices, self.encoders, self.sensor_gams)]
         z = self.fusion_gam(torch.cat(feats, 1) if len(feats) > 1 else feats[0])
         return self.head(self.regressor(z)).squeeze(1)
@@ -279,9 +284,12 @@ def _kaiming_init(model: nn.Module) -> None:
 
 
 def check_image_size(image_size: int) -> None:
-    if isinstance(image_size, bool) or not isinstance(image_size, numbers.Integral) or image_size < MIN_IMAGE_SIZE:
-        raise ValueError(f"image_size {image_size!r} is too small: the model needs at least {MIN_IMAGE_SIZE} px "
-                         f"(the encoder divides by 8)")
+    if isinstance(image_size, bool) or not isinstance(image_size, numbers.Integral):
+        raise ArgumentError(f"image_size {image_size!r} must be a whole number of pixels, at least {MIN_IMAGE_SIZE} "
+                            f"(the encoder divides by 8)")
+    if image_size < MIN_IMAGE_SIZE:
+        raise ArgumentError(f"image_size {image_size!r} is too small: the model needs at least {MIN_IMAGE_SIZE} px "
+                            f"(the encoder divides by 8)")
 
 
 def build_model(variant: str, depth: int, image_size: int, gam_channel_gate: str = "sigmoid") -> ToolForceNet:
@@ -289,11 +297,11 @@ def build_model(variant: str, depth: int, image_size: int, gam_channel_gate: str
     ``depth`` one of 18, 34, 50, 101, ``image_size`` the side S of the square inputs,
     ``gam_channel_gate`` one of GAM_CHANNEL_GATES."""
     if gam_channel_gate not in GAM_CHANNEL_GATES:
-        raise ValueError(f"unknown gam_channel_gate '{gam_channel_gate}' (one of {', '.join(GAM_CHANNEL_GATES)})")
+        raise ArgumentError(f"unknown gam_channel_gate '{gam_channel_gate}' (one of {', '.join(GAM_CHANNEL_GATES)})")
     if variant not in VARIANTS:
-        raise ValueError(f"unknown model variant '{variant}' (one of {', '.join(VARIANTS)})")
+        raise ArgumentError(f"unknown model variant '{variant}' (one of {', '.join(VARIANTS)})")
     if depth not in DEPTHS:
-        raise ValueError(f"unsupported ResNet depth {depth} (one of {', '.join(map(str, DEPTHS))})")
+        raise ArgumentError(f"unsupported ResNet depth {depth} (one of {', '.join(map(str, DEPTHS))})")
     check_image_size(image_size)
     return ToolForceNet(variant, depth, int(image_size), gam_channel_gate)
 

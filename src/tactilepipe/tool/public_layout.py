@@ -24,7 +24,7 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from tactilepipe.atomic import atomic_path, write_text
-from tactilepipe.errors import InputError
+from tactilepipe.errors import ArgumentError, InputError
 from tactilepipe.tool.imagefile import read_image
 
 KIND_DIRS = {"normal": "data_normal", "shear": "data_shear"}
@@ -61,7 +61,7 @@ def smooth_shear(shear_n: np.ndarray) -> np.ndarray:
 
 def _check_kind(kind: str) -> None:
     if kind not in KIND_DIRS:
-        raise ValueError(f"kind '{kind}' must be one of {sorted(KIND_DIRS)}")
+        raise ArgumentError(f"kind '{kind}' must be one of {sorted(KIND_DIRS)}")
 
 
 def write_public_trial(root: str | Path, trial_name: str, frames_left, frames_right, forces, kind: str,
@@ -77,8 +77,8 @@ def write_public_trial(root: str | Path, trial_name: str, frames_left, frames_ri
     forces = np.asarray(forces, np.float64)
     want = (n,) if kind == "normal" else (n, 3)
     if len(frames_right) != n or forces.shape != want:
-        raise ValueError(f"{trial_name}: {n} left frames, {len(frames_right)} right frames and forces "
-                         f"of shape {forces.shape} (expected {want})")
+        raise ArgumentError(f"{trial_name}: {n} left frames, {len(frames_right)} right frames and forces "
+                            f"of shape {forces.shape} (expected {want})")
     tdir = Path(root) / KIND_DIRS[kind] / trial_name
     for sub, frames in zip(SENSOR_DIRS, (frames_left, frames_right)):
         for i, img in enumerate(frames):

@@ -26,7 +26,7 @@ from pathlib import Path
 import torch
 from torch import nn
 
-from tactilepipe.errors import InputError
+from tactilepipe.errors import ArgumentError, InputError
 from tactilepipe.tool.model import DEPTHS, build_model
 
 PUBLIC_MARKER = "initial_cnn1.conv1.weight"
@@ -112,7 +112,7 @@ def public_layout(state: dict) -> tuple[int, str]:
     depth = next((d for d, spec in DEPTHS.items() if spec == (kind, blocks)), None)
     head = "shear" if "fc.5.weight" in state else "normal"
     if depth is None:
-        raise ValueError(f"ResNet of {kind} blocks {blocks} per stage is none of depths {sorted(DEPTHS)}")
+        raise ArgumentError(f"ResNet of {kind} blocks {blocks} per stage is none of depths {sorted(DEPTHS)}")
     return depth, head
 
 

@@ -30,7 +30,7 @@ import numpy as np
 from rosbags.typesys import Stores, get_typestore
 
 from tactilepipe.atomic import atomic_path, remove_stale_temporaries
-from tactilepipe.errors import InputError
+from tactilepipe.errors import ArgumentError, InputError
 from tactilepipe.tool.layout import TrialMeta
 from tactilepipe.tool.raw import SENSORS, RawTrial, SensorFrames
 
@@ -41,6 +41,7 @@ DEFAULT_TOPICS: dict[str, str] = {
     WRENCH_KEY: "/nano17/wrench",
 }
 FORMATS = ("ros1", "ros2_sqlite3", "ros2_mcap")
+SENSOR_ARGS = {"digit_left": "frames_left", "digit_right": "frames_right"}   # write_ros_trial's argument names
 IMAGE = "sensor_msgs/msg/Image"
 COMPRESSED_IMAGE = "sensor_msgs/msg/CompressedImage"
 WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
@@ -120,11 +121,12 @@ def _check_topics(topics: Mapping[str, str]) -> tuple[list[str], str]:
     sensors = [k for k in topics if k != WRENCH_KEY]
     unknown = set(sensors) - set(SENSORS)
     if unknown or not sensors or WRENCH_KEY not in topics:
-        raise ValueError(f"topics must map '{WRENCH_KEY}' and one or both of {SENSORS} to topic names, "
-                         f"got {dict(topics)}")
+        raise ArgumentError(f"topics (params.yaml tool_ingest.ros_topics) must map '{WRENCH_KEY}' and one or both "
+                            f"of {SENSORS} to topic names, got {dict(topics)}")
     names = [topics[k] for k in topics]
     if len(set(names)) != len(names):
-        raise ValueError(f"topic names must be distinct, got {dict(topics)}")
+        raise ArgumentError(f"topics (params.yaml tool_ingest.ros_topics): topic names must be distinct, "
+                            f"got {dict(topics)}")
     return sensors, topics[WRENCH_KEY]
 
 
@@ -368,11 +370,13 @@ def _header(ros2: bool, stamp_ns: int, frame_id: str, seq: int):
 def _image_messages(ros2: bool, frames, stamps: np.ndarray, frame_id: str, compressed: bool,
                     codec: str, encoding: str, jpeg_quality: int) -> tuple[str, list[bytes]]:
     t = _typestore(ros2).types
+    arg = SENSOR_ARGS.get(frame_id, frame_id)
     out = []
     for i, (img, stamp) in enumerate(zip(frames, stamps)):
         img = np.asarray(img)
         if img.dtype != np.uint8 or not (img.ndim == 3 and img.shape[2] == 3 or img.ndim == 2):
-            raise ValueError(f"frame {i}: expected BGR uint8 H x W x 3 (or H x W gray), got {img.dtype} {img.shape}")
+            raise ArgumentError(f"{arg} frame {i}: expected BGR uint8 H x W x 3 (or H x W gray), "
+                                f"got {img.dtype} {img.shape}")
         if img.ndim == 2:
             img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
         header = _header(ros2, int(stamp), frame_id, i)
@@ -380,7 +384,7 @@ def _image_messages(ros2: bool, frames, stamps: np.ndarray, frame_id: str, compr
             ext, params = (".png", []) if codec == "png" else (".jpg", [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])
             ok, buf = cv2.imencode(ext, img, params)
             if not ok:
-                raise ValueError(f"frame {i}: cv2 could not encode {codec}")
+                raise ArgumentError(f"{arg} frame {i}: cv2 could not encode {codec}")
             msg = t[COMPRESSED_IMAGE](header=header, format=codec, data=buf.reshape(-1))
             out.append(_serialize(ros2, msg, COMPRESSED_IMAGE))
         else:
@@ -456,16 +460,16 @@ def write_ros_trial(path: str | Path, frames_left, frames_right, frame_host_ns, 
     BGR). Header stamps and receive times are the given host_ns. Returns the bag path.
     """
     if fmt not in FORMATS:
-        raise ValueError(f"fmt must be one of {FORMATS}, got {fmt!r}")
+        raise ArgumentError(f"fmt must be one of {FORMATS}, got {fmt!r}")
     if compressed and codec not in ("png", "jpeg"):
-        raise ValueError(f"codec must be png or jpeg, got {codec!r}")
+        raise ArgumentError(f"codec must be png or jpeg, got {codec!r}")
     if not compressed and encoding not in ENCODING_CHANNELS:
-        raise ValueError(f"encoding must be one of {tuple(ENCODING_CHANNELS)}, got {encoding!r}")
+        raise ArgumentError(f"encoding must be one of {tuple(ENCODING_CHANNELS)}, got {encoding!r}")
     ros2 = fmt != "ros1"
     given = {"digit_left": frames_left, "digit_right": frames_right}
     given = {k: v for k, v in given.items() if v is not None}
     if not given:
-        raise ValueError("at least one of frames_left, frames_right is needed")
+        raise ArgumentError("at least one of frames_left, frames_right is needed")
     if isinstance(frame_host_ns, Mapping):
         stamps_of = {k: frame_host_ns[k] for k in given}
     elif isinstance(frame_host_ns, tuple) and len(frame_host_ns) == 2:
@@ -475,16 +479,18 @@ def write_ros_trial(path: str | Path, frames_left, frames_right, frame_host_ns, 
     streams = []
     for key, frames in given.items():
         if key not in topics:
-            raise ValueError(f"no topic configured for {key}: {dict(topics)}")
+            raise ArgumentError(f"topics: no topic configured for {key}: {dict(topics)}")
         stamps = np.asarray(stamps_of[key], np.int64)
         if len(stamps) != len(frames):
-            raise ValueError(f"{key}: {len(frames)} frames but {len(stamps)} stamps")
+            raise ArgumentError(f"{key}: {len(frames)} frames but {len(stamps)} stamps "
+                                f"({SENSOR_ARGS[key]} against frame_host_ns)")
         msgtype, raws = _image_messages(ros2, frames, stamps, key, compressed, codec, encoding, jpeg_quality)
         streams.append((topics[key], msgtype, stamps, raws))
     force_ns = np.asarray(force_host_ns, np.int64)
     force = np.asarray(force_n, np.float64)
     if force.shape != (len(force_ns), 3):
-        raise ValueError(f"force_n must be ({len(force_ns)}, 3), got {force.shape}")
+        raise ArgumentError(f"force_n must be ({len(force_ns)}, 3) (a row per force_host_ns stamp), "
+                            f"got {force.shape}")
     streams.append((topics[WRENCH_KEY], WRENCH_STAMPED, force_ns, _wrench_messages(ros2, force_ns, force, "nano17")))
     path = Path(path)
     _write_bag(path, fmt, streams)

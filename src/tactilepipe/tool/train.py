@@ -32,7 +32,7 @@ import torch
 from torch import nn
 
 from tactilepipe.atomic import atomic_path
-from tactilepipe.errors import ConfigError, InputError, TactilepipeError
+from tactilepipe.errors import ArgumentError, ConfigError, InputError, TactilepipeError
 from tactilepipe.tool.model import build_model, count_parameters
 
 CHECKPOINT_FORMAT = "tactilepipe.tool.train/1"
@@ -445,7 +445,10 @@ def load_model(checkpoint_path: str | Path, device: str = "cpu", channels_last: 
 def _own_model(checkpoint_path: Path, raw) -> tuple[nn.Module, dict]:
     ckpt = _load_checkpoint(checkpoint_path, raw)
     meta = {"gam_channel_gate": "sigmoid", **ckpt["meta"], "config": ckpt["config"], "source": "tactilepipe"}
-    model = build_model(meta["variant"], meta["depth"], meta["image_size"], meta["gam_channel_gate"])
+    try:
+        model = build_model(meta["variant"], meta["depth"], meta["image_size"], meta["gam_channel_gate"])
+    except ArgumentError as exc:                  # the file's metadata, not the caller's argument
+        raise InputError(checkpoint_path, f"metadata: {exc}") from None
     model.load_state_dict(ckpt["model"])
     return model, meta
 

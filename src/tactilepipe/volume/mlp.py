@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from tactilepipe.errors import TactilepipeError
+from tactilepipe.errors import ArgumentError, TactilepipeError
 
 _ROUND_OFF = 16 * np.finfo(np.float64).eps     # relative spread below which a column is constant
 
@@ -58,11 +58,11 @@ class MLPRegressor:
         x = np.asarray(x, np.float64)
         y = np.asarray(y, np.float64).reshape(-1)
         if x.ndim != 2 or len(x) != len(y) or len(y) == 0:
-            raise ValueError(f"fit needs x (n, d) and y (n,), got {x.shape} and {y.shape}")
+            raise ArgumentError(f"fit needs x (n, d) and y (n,), got {x.shape} and {y.shape}")
         if not (np.isfinite(x).all() and np.isfinite(y).all()):
             rows = np.flatnonzero(~(np.isfinite(x).all(axis=1) & np.isfinite(y)))
-            raise ValueError(f"fit: inputs or targets contain NaN or inf ({len(rows)} samples, first rows "
-                             f"{rows[:5].tolist()})")
+            raise ArgumentError(f"fit: inputs (x) or targets (y) contain NaN or inf ({len(rows)} samples, "
+                                f"first rows {rows[:5].tolist()})")
         cfg = self.config
         # each restart has its own initialisation stream (restart 0 is the restarts=1 network);
         # the minibatch order has another
