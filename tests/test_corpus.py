@@ -353,7 +353,7 @@ for _fmt in ri.FORMATS:
     @case(f"{_fmt}_tool/overwritten_records")
     def _(c, fmt=_fmt):
         # headers, schemas and connection records near the start (pixels overwritten further on
-        # go unnoticed: no checksums; see the README's Robustness section)
+        # go unnoticed: no checksums; see docs/robustness.md)
         bag = c.copy(fmt); overwrite(ros_storage(bag), 0.0, n=2000, skip=16)
         return Case(c.ros(bag), bag, "cannot read ROS[12] bag|cannot decode")
 

@@ -66,7 +66,7 @@ def test_push_and_pull_through_an_s3_remote(tmp_path, s3_server):
     (session / "lifts.csv").write_text("bag,volume_ml,set\n" + "".join(f"{n},{n[1:4].lstrip('0') or 0},main\n"
                                                                     for n in payloads))
     dvc(wd, env, "add", "raw/volume/s1")
-    # the README's S3 set-up; the endpoint is only needed for an S3-compatible server
+    # the S3 set-up of docs/dvc.md; the endpoint is only needed for an S3-compatible server
     dvc(wd, env, "remote", "add", "-d", "s3", f"s3://{BUCKET}/dvc")
     dvc(wd, env, "remote", "modify", "s3", "endpointurl", s3_server["endpoint"])
     run(["git", "add", "."], wd)
