@@ -1,18 +1,18 @@
 """Shared fixtures of the volume-scene tests: smoke parameters, a few simulated lifts (bags and
-shards, written once per session), and a plain rosbags writer for hand-made bad recordings."""
+shards, written once per session), and a plain rosbags writer for hand-made bad recordings.
+Shared plain helpers (not fixtures) are in tests/support/."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import pytest
-from rosbags.rosbag1 import Writer
 
-from tactilepipe import papillarray as pa
 from tactilepipe.config import REPO_ROOT, load_params
 from tactilepipe.shards import ingest_bag
 from tactilepipe.volume import simulate as vsim
+
+from support import bags
 
 PARAMS_PATH = REPO_ROOT / "params.yaml"
 
@@ -63,37 +63,11 @@ def good_bag(sim_lifts) -> Path:
     return sim_lifts[1]["bag"]
 
 
-def _write_ros1_bag(path: str | Path, topics: dict[str, tuple[str, list[int], list[bytes]]]) -> Path:
-    """Write ``{topic: (msgtype, bag stamps, raw messages)}`` with rosbags directly (not with the
-    project's bagio, so bad inputs are made independently of the code under test)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    store = pa.typestore()
-    with Writer(path) as writer:
-        for topic, (msgtype, stamps, raws) in topics.items():
-            conn = writer.add_connection(topic, msgtype, typestore=store)
-            for stamp, raw in zip(stamps, raws):
-                writer.write(conn, int(stamp), raw)
-    return path
-
-
 @pytest.fixture(scope="session")
 def write_ros1_bag():
-    return _write_ros1_bag
-
-
-def _sensor_stream(n: int = 20, seed: int = 0, t0_ns: int = 1_767_225_600_000_000_000,
-                   period_ns: int = 2_000_000) -> dict:
-    """A small synthetic PapillArray stream (arguments of encode_sensor_states)."""
-    rng = np.random.default_rng(seed)
-    force = rng.normal(0.0, 1.0, (n, 9, 3)).astype(np.float32)
-    return {"stamp_ns": t0_ns + period_ns * np.arange(n, dtype=np.int64),
-            "tus": 1000 + 2000 * np.arange(n, dtype=np.int64),
-            "disp": (force / 4.0).astype(np.float32), "force": force,
-            "in_contact": rng.random((n, 9)) > 0.3,
-            "slip_state": rng.integers(0, 3, (n, 9)).astype(np.int32)}
+    return bags.write_ros1_bag
 
 
 @pytest.fixture(scope="session")
 def sensor_stream():
-    return _sensor_stream
+    return bags.sensor_stream

@@ -10,7 +10,6 @@ import os
 import re
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -22,15 +21,14 @@ from tactilepipe.config import load_params
 from tactilepipe.errors import TactilepipeError
 from tactilepipe.estimate import estimate_report, forward_flops, planned_pairs, training_flops
 
-REPO = Path(__file__).resolve().parents[1]
-BIN = Path(sys.executable).parent
-ENV = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
+from support.project import BIN, ENV, REPO
+
 SCHEMA = json.loads((REPO / "workflow/schemas/params.schema.json").read_text())
 CLUSTER = REPO / ".ci" / "slurm-cluster"
 
 
 def copy_project(dest: Path) -> Path:
-    """The workflow and library in a fresh folder (as tests/test_workflow.py does)."""
+    """The workflow and library in a fresh folder (as support.project.copy_project does, without studies/)."""
     for name in ("Snakefile", "params.yaml", "dvc.yaml", ".dvcignore"):
         if (REPO / name).exists():
             shutil.copy(REPO / name, dest / name)
@@ -155,8 +153,7 @@ def test_paper_dry_run_prints_the_estimate_and_builds_nothing(tmp_path):
 
 @pytest.fixture
 def tiny_data(tmp_path):
-    sys.path.insert(0, str(Path(__file__).parent))
-    from test_tool_model import make_dataset, make_split_dict
+    from support.tool_data import make_dataset, make_split_dict
     from tactilepipe.tool.loader import ToolFrames
     root = make_dataset(tmp_path / "data", n_trials=8, per_trial=6)
     split = make_split_dict(ToolFrames(root, "normal"))

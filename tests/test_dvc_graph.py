@@ -14,32 +14,14 @@ from pathlib import Path
 import pytest
 import yaml
 
-from test_workflow import BIN, REPO, copy_project, run
+from support.dvc_graph import covers, dvc_stages
+from support.project import BIN, REPO, copy_project, run
 
 pytestmark = pytest.mark.integration
 
 # Files a stage declares that no Snakemake rule lists as an output, each with the reason it is
 # accepted. Keep this empty: every entry is a file Snakemake cannot rebuild if it goes missing.
 KNOWN_UNDECLARED_OUTS: dict[str, str] = {}
-
-
-def _entries(items) -> list[str]:
-    return [next(iter(i)) if isinstance(i, dict) else i for i in items or []]
-
-
-def dvc_stages(dvc_yaml: Path, params: dict) -> dict[str, dict]:
-    """{stage: {cmd, deps, outs}} with ${key} interpolated from params.yaml (as DVC does)."""
-    def interp(s: str) -> str:
-        return re.sub(r"\$\{([^}]+)\}", lambda m: str(params[m.group(1)]), s)
-    stages = yaml.safe_load(dvc_yaml.read_text())["stages"]
-    return {name: {"cmd": interp(" ".join(s["cmd"].split())) if isinstance(s["cmd"], str) else s["cmd"],
-                   "deps": [interp(d) for d in _entries(s.get("deps"))],
-                   "outs": [interp(o) for o in _entries(s.get("outs")) + _entries(s.get("metrics"))]}
-            for name, s in stages.items()}
-
-
-def covers(path: str, declared: str) -> bool:
-    return path == declared or path.startswith(declared.rstrip("/") + "/")
 
 
 _DRY_RUNS: dict[tuple, list[dict]] = {}

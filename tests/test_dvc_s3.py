@@ -9,7 +9,7 @@ import subprocess
 
 import pytest
 
-from test_workflow import BIN, ENV, REPO, run
+from support.project import BIN, ENV, REPO, run
 
 pytestmark = pytest.mark.integration
 

@@ -21,8 +21,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from test_dvc_graph import covers, dvc_stages
-from test_workflow import BIN, REPO, copy_project, run, snakemake
+from support.dvc_graph import covers, dvc_stages
+from support.project import BIN, REPO, copy_project, dvc, git, run, snakemake
 
 pytestmark = pytest.mark.integration
 
@@ -32,18 +32,10 @@ NEW_TOOL = "t2026-05-02"   # a new tool-rig session (native layout, like real re
 NEW_DRIFT = "d2026-05-03"  # a new drift experiment (bags named {unloaded,loaded}_tMM.bag)
 
 
-def dvc(wd: Path, *args: str, check: bool = True):
-    return run([str(BIN / "dvc"), *args], wd, check)
-
-
 def dvc_out(wd: Path, *args: str) -> str:
     """stdout + stderr (Snakemake's job lines and stats reach dvc's stderr)."""
     proc = dvc(wd, *args)
     return proc.stdout + proc.stderr
-
-
-def git(wd: Path, *args: str):
-    return run(["git", *args], wd)
 
 
 def ran_stages(out: str) -> set[str]:

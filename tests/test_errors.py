@@ -9,7 +9,6 @@ import os
 import re
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,7 +19,9 @@ from tactilepipe.errors import ArgumentError, InputError, TactilepipeError
 from tactilepipe.metrics import r2_detail
 from tactilepipe.shards import DEFAULT_POSE_TOPIC, read_papillarray_bag
 
-SRC = Path(__file__).resolve().parents[1] / "src"
+from support.project import REPO
+
+SRC = REPO / "src"
 
 
 def test_argument_error_is_a_tactilepipe_error_and_a_value_error():

@@ -29,7 +29,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from test_workflow import BIN, ENV, copy_project
+from support.project import BIN, ENV, copy_project
 
 pytestmark = pytest.mark.integration
 

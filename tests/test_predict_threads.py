@@ -13,7 +13,7 @@ from tactilepipe.tool.model import build_model
 from tactilepipe.tool.predict import stream_predictions
 from tactilepipe.tool.train import CHECKPOINT_FORMAT, TrainConfig
 
-from test_corpus import make_native_session
+from support.sessions import make_native_session
 
 
 def test_predict_streams_on_the_configured_threads_and_restores_them(tmp_path, monkeypatch):

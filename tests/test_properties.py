@@ -21,6 +21,8 @@ from tactilepipe.tool.layout import TrialMeta, read_calibration, read_frame_inde
 from tactilepipe.tool.public_layout import _parse_force
 from tactilepipe.tool.serial_log import read_serial_log
 
+from support.bags import sensor_stream, write_ros1_bag
+
 FAST = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 SLOW = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -128,11 +130,10 @@ def test_a_damaged_papillarray_bag_ingests_or_is_an_input_error(small_bag_bytes,
 
 @pytest.fixture(scope="module")
 def small_bag_bytes(tmp_path_factory) -> bytes:
-    from conftest import _sensor_stream, _write_ros1_bag
-    s = _sensor_stream(n=6, seed=9)
+    s = sensor_stream(n=6, seed=9)
     raws = pa.encode_sensor_states(s["stamp_ns"], s["tus"], s["disp"], s["force"], s["in_contact"], s["slip_state"])
     pose = pa.encode_pose_stamped(s["stamp_ns"][:3], np.zeros((3, 3)))
-    bag = _write_ros1_bag(tmp_path_factory.mktemp("bag") / "small.bag", {
+    bag = write_ros1_bag(tmp_path_factory.mktemp("bag") / "small.bag", {
         "/hub_0/sensor_0": (pa.SENSOR_STATE, s["stamp_ns"].tolist(), raws),
         "/tool_pose": (pa.POSE_STAMPED, s["stamp_ns"][:3].tolist(), pose)})
     return bag.read_bytes()

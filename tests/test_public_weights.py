@@ -226,7 +226,7 @@ def test_predict_streams_a_public_checkpoint_and_asks_for_its_force_range(tmp_pa
     from tactilepipe.config import load_params
     from tactilepipe.tool.predict import stream_predictions
     from tactilepipe.tool.public_layout import write_public_trial
-    from test_workflow import REPO
+    from support.project import REPO
     rng = np.random.default_rng(0)
     frames = [rng.integers(60, 200, (48, 64, 3), dtype=np.uint8) for _ in range(3)]
     trial = write_public_trial(tmp_path, "t0", frames, frames[::-1], [0.5, 3.0, 1.0], "normal")

@@ -15,7 +15,7 @@ from tactilepipe.tool.importers import open_trial
 from tactilepipe.tool.ingest import ingest_trial
 from tactilepipe.tool.report_data import qc_markdown
 
-from test_corpus import INGEST, N_FRAMES, SIZE, SYNC, digit_frame, make_native_session, make_public_session
+from support.sessions import INGEST, N_FRAMES, SIZE, SYNC, digit_frame, make_native_session, make_public_session
 
 
 @pytest.fixture

@@ -17,7 +17,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from test_volume_models import _baseline_data
 from tactilepipe.errors import ConfigError, InputError, TactilepipeError
 from tactilepipe.metrics import (R2_CONSTANT, R2_EMPTY, R2_NONFINITE, format_metric, r2_detail,
                                  r2_score)
@@ -27,6 +26,8 @@ from tactilepipe.volume import simulate as vsim
 from tactilepipe.volume import viscoelastic as ve
 from tactilepipe.volume.folds import make_folds
 from tactilepipe.volume.mlp import MLPConfig, MLPDivergedError, MLPRegressor
+
+from support.volume_data import baseline_data
 
 G = vsim.G
 SILICONE = ve.Prony((0.05, 0.05), (0.0005, 1.5))      # the benchmark's soft silicone: stiff at 100-1000 Hz
@@ -487,7 +488,7 @@ def test_tool_training_stops_on_an_inf_label_naming_epoch_and_batch(tmp_path):
     """tool/train.py: an inf label (not only NaN, tested in test_tool_model) stops training with
     the epoch, the batch and the sample index."""
     pytest.importorskip("torch")
-    from test_tool_model import make_dataset, make_split_dict, quick_cfg
+    from support.tool_data import make_dataset, make_split_dict, quick_cfg
 
     from tactilepipe.tool.loader import ToolFrames
     from tactilepipe.tool.train import train
@@ -505,7 +506,7 @@ def test_tool_training_stops_on_an_inf_label_naming_epoch_and_batch(tmp_path):
 # ================================ mu optimum on the edge =========================================
 
 def _formula_data(mu_true: float, p: dict) -> tuple[pd.DataFrame, list[dict]]:
-    return _baseline_data(mu_true, p, seed=0)      # samples that follow the baseline formula exactly
+    return baseline_data(mu_true, p, seed=0)       # samples that follow the baseline formula exactly
 
 
 @pytest.mark.parametrize("mu_true,side", [(0.55, "upper"), (0.02, "lower")])

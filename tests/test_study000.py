@@ -24,8 +24,8 @@ from tactilepipe.config import load_params
 from tactilepipe.errors import InputError
 from tactilepipe.tool import public_archive as pa
 from tactilepipe.tool.importers import list_trials
-from test_dvc_workflow import dvc, git
-from test_workflow import BIN, REPO, copy_project, run
+
+from support.project import BIN, REPO, copy_project, dvc, git, run
 
 STUDY = "studies/000"
 

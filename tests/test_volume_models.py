@@ -21,6 +21,8 @@ from tactilepipe.volume.folds import make_folds
 from tactilepipe.volume.mlp import MLPConfig, MLPRegressor
 from tactilepipe.volume.train import fit_modality
 
+from support.volume_data import baseline_data
+
 G = 9.81
 
 
@@ -369,24 +371,11 @@ def test_estimate_volume_hand_value():
                                [-56.0, 0.0], atol=1e-2)
 
 
-def _baseline_data(mu_true: float, p: dict, seed: int = 0) -> tuple[pd.DataFrame, list[dict]]:
-    """Samples that follow the baseline formula exactly for mu_true (Fz varies independently)."""
-    rng = np.random.default_rng(seed)
-    rows = []
-    for v in np.arange(0.0, 301.0, 50.0):
-        for i in range(4):
-            fz = 6.0 * (1 + 0.1 * rng.standard_normal(30))
-            fy = (v + p["container_mass_g"]) * p["gravity"] / 1000.0 - mu_true * fz
-            rows.append(pd.DataFrame({"lift": f"v{v:g}_{i}", "volume_ml": v, "set": "main", "fy0": fy, "fz0": fz}))
-    data = pd.concat(rows, ignore_index=True)
-    return data, make_folds(data.drop_duplicates("lift"), 3, 3, 1, seed=seed)
-
-
 def test_sweep_recovers_mu(smoke_params):
     p = smoke_params["baseline"]
     step = (p["mu_max"] - p["mu_min"]) / (p["n_mu"] - 1)
     mu_true = 0.2681
-    data, folds = _baseline_data(mu_true, p)
+    data, folds = baseline_data(mu_true, p)
     res = baseline.sweep(data, folds, 0, p)
     assert abs(res["mu_star"] - mu_true) <= step
     assert (np.abs(res["optima"]["mu_opt"] - mu_true) <= step).all()
@@ -403,10 +392,10 @@ def test_sweep_recovers_mu(smoke_params):
 
 def test_sweep_flags_an_optimum_on_the_edge(smoke_params):
     p = smoke_params["baseline"]
-    data, folds = _baseline_data(0.55, p)                    # true mu above the swept range
+    data, folds = baseline_data(0.55, p)                     # true mu above the swept range
     res = baseline.sweep(data, folds, 0, p)
     assert res["optima"]["on_edge"].all()
     assert (res["optima"]["mu_opt"] == p["mu_max"]).all()
-    data, folds = _baseline_data(0.02, p)
+    data, folds = baseline_data(0.02, p)
     res = baseline.sweep(data, folds, 0, p)
     assert res["optima"]["on_edge"].all() and (res["optima"]["mu_opt"] == p["mu_min"]).all()

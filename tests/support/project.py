@@ -1,0 +1,48 @@
+"""The repository, the venv's command lines and project copies: what the end-to-end tests run."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+BIN = Path(sys.executable).parent
+ENV = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
+
+
+def copy_project(dest: Path, scale: str | None = None) -> Path:
+    for name in ("Snakefile", "params.yaml", "dvc.yaml", ".dvcignore"):
+        if (REPO / name).exists():
+            shutil.copy(REPO / name, dest / name)
+    for name in ("workflow", "src", "studies"):
+        shutil.copytree(REPO / name, dest / name, symlinks=True,
+                        ignore=shutil.ignore_patterns("__pycache__", "*.egg-info", "raw", "results", "cache", "tmp"))
+    if scale:
+        text = (dest / "params.yaml").read_text().replace("scale: default ", f"scale: {scale} ")
+        assert f"scale: {scale} " in text
+        (dest / "params.yaml").write_text(text)
+    return dest
+
+
+def run(cmd: list[str], cwd: Path, check: bool = True) -> subprocess.CompletedProcess:
+    # a project copy runs its own source (the installed package points at the repository's)
+    env = {**ENV, "PYTHONPATH": str(Path(cwd) / "src")} if (Path(cwd) / "src" / "tactilepipe").is_dir() else ENV
+    proc = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
+    return proc
+
+
+def snakemake(cwd: Path, *args: str, check: bool = True) -> subprocess.CompletedProcess:
+    return run([str(BIN / "snakemake"), "--cores", "2", *args], cwd, check)
+
+
+def dvc(wd: Path, *args: str, check: bool = True):
+    return run([str(BIN / "dvc"), *args], wd, check)
+
+
+def git(wd: Path, *args: str):
+    return run(["git", *args], wd)
