@@ -40,7 +40,7 @@ test: $(STAMP)  ## the whole test suite (unit + smoke-scale integration through 
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest
 
 test-slurm: $(STAMP)  ## the smoke scale through a single-node SLURM cluster started here (root; apt-installs slurm-wlm, munge)
-	PATH=$(CURDIR)/$(BIN):$$PATH TACTILEPIPE_SLURM_TEST=1 $(BIN)/pytest -m slurm -v tests/test_cluster.py
+	PATH=$(CURDIR)/$(BIN):$$PATH TACTILEPIPE_SLURM_TEST=1 $(BIN)/pytest -m slurm -v tests/integration/test_cluster.py
 
 bench: $(STAMP)  ## benchmarks, each printing ours next to the reference loop and the target
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_volume.py

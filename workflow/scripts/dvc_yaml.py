@@ -48,7 +48,8 @@ HEADER = """\
 # GENERATED from the Snakemake graph by `make dvc.yaml` (workflow/scripts/dvc_yaml.py): do not edit.
 # Each stage runs Snakemake targets, so the logic exists once (workflow/rules); its deps are the
 # data it reads, the source files of the code it runs and its rule files; its params the keys
-# that code declares. tests/test_dvc_graph.py fails when this file is not what the generator makes.
+# that code declares. tests/integration/test_dvc_graph.py fails when this file is not what the
+# generator makes.
 """
 
 

@@ -6,7 +6,7 @@ record where there is one) and states the problem; never a library's exception; 
 temporary left behind. Where the rule is to drop and count (garbled serial lines, public frames
 below 0 N), the count must reach the shard's QC record instead.
 
-The test ids read as the list of cases: `pytest tests/test_corpus.py --collect-only -q`.
+The test ids read as the list of cases: `pytest tests/robustness/test_corpus.py --collect-only -q`.
 """
 
 from __future__ import annotations
