@@ -132,11 +132,12 @@ def test_paper_dry_run_prints_the_estimate_and_builds_nothing(tmp_path):
     proc = run([str(BIN / "snakemake"), "-n", "--cores", "2", "--config", "scale=paper"], wd)
     out = proc.stdout
     assert "Compute estimate" in out and "Modelled training" in out
-    # all variants of both targets, plus leave-one-tool-out and the backbone/size sweep
+    # all variants of both targets on each of the paper scale's 5 repeated splits, leave-one-tool-out
+    # of each of the 4 tools, and the backbone/size sweep
     train_rows = [l for l in out.splitlines() if re.match(r"tool_(normal|shear)\s+\w+\s+\w+\s+\d+\s+\d+\s+[\d,]+", l)]
-    assert len(train_rows) == 2 * (4 + 1 + 3)
+    assert len(train_rows) == 2 * (4 * 5 + 4 + 3)
     assert all(" GPU" in l for l in train_rows)
-    assert re.search(r"(?m)^tool_train\s+16\s+\d+\s+1\s+32\.0GB\s+48\.0 h", out)
+    assert re.search(r"(?m)^tool_train\s+54\s+\d+\s+1\s+32\.0GB\s+48\.0 h", out)
     # every training job asks for a GPU; the 224-px data is planned, never written
     assert re.search(r"rule tool_train:(?:\n    .*)*\n    resources: .*gpu=1", out)
     # nothing built: no recordings, and no results but the rules' parameter stamps (written as the
@@ -146,7 +147,7 @@ def test_paper_dry_run_prints_the_estimate_and_builds_nothing(tmp_path):
         ["results/params"] * len(list((wd / "results/params").glob("*.json")))
     # a smoke-scale dry run books no GPU
     smoke = run([str(BIN / "snakemake"), "-n", "--cores", "2", "--config", "scale=smoke"], wd).stdout
-    assert re.search(r"(?m)^tool_train\s+12\s+\d+\s+0\s", smoke) and "gpu=1" not in smoke
+    assert re.search(r"(?m)^tool_train\s+24\s+\d+\s+0\s", smoke) and "gpu=1" not in smoke   # 2 x (4 x 2 + 3 + 1)
 
 
 # ----------------------------------------------------------------------------- device and precision

@@ -53,7 +53,7 @@ def make_split_dict(data: ToolFrames) -> dict:
     val = np.flatnonzero(trial == 6)
     test = np.flatnonzero(trial == 7)
     finite = train[np.isfinite(data.labels[train])]
-    return {"name": "trial", "label": "normal", "train": train.tolist(), "validation": val.tolist(),
+    return {"name": "trial", "kind": "trial", "repeat": 0, "label": "normal", "train": train.tolist(), "validation": val.tolist(),
             "test": test.tolist(), "label_stats": label_stats(data.labels[finite])}
 
 
