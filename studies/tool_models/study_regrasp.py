@@ -15,8 +15,8 @@ full-resolution BGR frames for ``tactilepipe realism``: ``DIR/rest/`` (every tri
 frame) and ``DIR/press_5_10N/<trial>_<finger>/`` (the reference first, then frames at 5-10 N).
 
 Runs on whichever tactilepipe is importable, so the same numbers can be had for another version
-of the simulator (``PYTHONPATH=<other checkout>/src python benchmarks/study_regrasp.py``). Usage:
-    python benchmarks/study_regrasp.py [--forces 3 10] [--export DIR]
+of the simulator (``PYTHONPATH=<other checkout>/src python studies/tool_models/study_regrasp.py``). Usage:
+    python studies/tool_models/study_regrasp.py [--forces 3 10] [--export DIR]
 About 3 minutes on one core at the default scale.
 """
 

@@ -17,7 +17,7 @@ from tactilepipe.tool.evaluate import linear_fit_predictions, summarise, tactile
 from tactilepipe.tool.loader import ToolFrames
 from tactilepipe.tool.run_model import LABELS, train_and_predict
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def study_arguments(description: str) -> argparse.ArgumentParser:

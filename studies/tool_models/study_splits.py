@@ -10,7 +10,7 @@ splits of MAE, R² and the margin to the baseline (paired: same test trials), an
 the variant beats the baseline on both MAE and R².
 
 Needs a built scene's data (``snakemake --cores 2 results/tool_normal/data/samples.parquet``). Usage:
-    python benchmarks/study_splits.py [--scene tool_normal] [--variants no_ref] [--splits 5]
+    python studies/tool_models/study_splits.py [--scene tool_normal] [--variants no_ref] [--splits 5]
 About 2.5 minutes per variant and split on 2 cores at default scale (no_ref, Fz).
 """
 
