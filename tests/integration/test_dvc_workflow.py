@@ -295,6 +295,15 @@ def test_snakemake_report_is_one_self_contained_html(repo, new_session):
     for name in ("r2_by_modality", "drift_curves", "pressing_strip", "window_heatmap", "table1_r2", "fits.md",
                  "variants.md", "mu_max", "learning_rate"):
         assert name in html, name
+    # the front page: each scene's headline tables first, the parameters (one block per group) after
+    desc = html[html.index("var workflow_desc = "):]
+    desc = desc[:desc.index("\n")]                      # the front page, one JavaScript string
+    assert "System Message" not in desc, "the front page's reStructuredText has an error"
+    front = [desc.index(h) for h in ("Volume from force", "Sensor drift", "Tool force from touch (study 000): normal",
+                                     "Tool force from touch (study 000): shear", "Parameters of this run")]
+    assert front == sorted(front)
+    assert desc.index("est_vol (baseline)") < front[-1] and desc.index("rest_frame_rmse_linear") < front[-1]
+    assert desc.index("<tt class=\\\"docutils literal\\\">tool_train</tt>") > front[-1]
 
 
 def test_marking_pulled_results_refuses_when_content_differs(repo, new_session):
