@@ -183,7 +183,8 @@ def test_new_tool_session_reruns_only_the_tool_stages_and_ingests_only_new_trial
     counts = job_counts(out)
     assert new_tool_session["n_new"] >= 12
     assert counts["ingest_tool"] == new_tool_session["n_new"], counts          # only the new trials
-    assert counts["tool_dataset"] == 2 and counts["tool_train"] == 2 * 6 and "simulate_tool" not in counts
+    # every run of both scenes: 4 variants x 2 repeats, 3 tools left out in turn, 1 sweep run
+    assert counts["tool_dataset"] == 2 and counts["tool_train"] == 2 * (4 * 2 + 3 + 1) and "simulate_tool" not in counts
     for name, (mtime, data) in new_tool_session["old_shards"].items():         # earlier shards untouched
         p = wd / "results/tool/shards/sim-smoke" / name
         assert p.stat().st_mtime_ns == mtime and p.read_bytes() == data, name
