@@ -82,7 +82,8 @@ def repo(tmp_path_factory) -> dict:
     git(wd, "add", ".")
     git(wd, "commit", "-q", "-m", "baseline at smoke scale")
     dvc(wd, "push")
-    return {"wd": wd, "root": root, "remote": remote}
+    yield {"wd": wd, "root": root, "remote": remote}
+    shutil.rmtree(root, ignore_errors=True)          # the project, its clones and the remote: GBs
 
 
 def test_every_generated_file_is_a_declared_out(repo):

@@ -128,7 +128,8 @@ def reference(tmp_path_factory) -> Path:
     """One uninterrupted smoke run of the tool_normal scene up to a trained model."""
     wd = copy_project(tmp_path_factory.mktemp("reference"))
     smk(wd, *CONFIG, "--", MODEL)
-    return wd
+    yield wd
+    shutil.rmtree(wd, ignore_errors=True)
 
 
 def test_sigkill_during_ingest_then_rerun_equals_uninterrupted(reference, tmp_path):

@@ -93,7 +93,8 @@ def project(tmp_path_factory, stand_ins, server) -> Path:
     (study / "raw/downloads").mkdir(parents=True)
     for name in ("data_normal.zip", "best_model_normal.pth"):
         dvc(study, "import-url", f"{server}/{name}", f"raw/downloads/{name}")
-    return wd
+    yield wd
+    shutil.rmtree(wd, ignore_errors=True)
 
 
 def test_import_unpack_ingest_train_and_published_check_run_through_dvc_repro(project, stand_ins):

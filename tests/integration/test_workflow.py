@@ -20,7 +20,8 @@ pytestmark = pytest.mark.integration
 def smoke_run(tmp_path_factory) -> Path:
     wd = copy_project(tmp_path_factory.mktemp("smk"))
     snakemake(wd, "--config", "scale=smoke")
-    return wd
+    yield wd
+    shutil.rmtree(wd, ignore_errors=True)
 
 
 def test_smoke_builds_every_target_of_both_scenes(smoke_run: Path):
