@@ -296,5 +296,6 @@ def test_smoke_scale_through_slurm_equals_the_local_run(slurm_cluster, tmp_path)
     assert set(submitted.values()) <= completed
     # training ran under SLURM with the rule's threads as CPUs, and wrote the same numbers
     train_log = next((cluster / ".snakemake/slurm_logs/rule_tool_train").rglob("*.log")).read_text()
-    assert "rule tool_train:" in train_log and "threads: 2" in train_log
+    threads = load_params(REPO / "params.yaml", {"scale": "smoke"})["tool_train"]["num_threads"]
+    assert "rule tool_train:" in train_log and f"threads: {threads}" in train_log
     assert comparable(cluster) == comparable(local)
