@@ -297,5 +297,7 @@ def test_smoke_scale_through_slurm_equals_the_local_run(slurm_cluster, tmp_path)
     # training ran under SLURM with the rule's threads as CPUs, and wrote the same numbers
     train_log = next((cluster / ".snakemake/slurm_logs/rule_tool_train").rglob("*.log")).read_text()
     threads = load_params(REPO / "params.yaml", {"scale": "smoke"})["tool_train"]["num_threads"]
-    assert "rule tool_train:" in train_log and f"threads: {threads}" in train_log
+    header = train_log[train_log.index("rule tool_train:"):].split("Shell command:")[0]
+    # Snakemake names the threads in a job's header only when they are more than one
+    assert (f"threads: {threads}" in header) if threads > 1 else ("threads:" not in header)
     assert comparable(cluster) == comparable(local)
