@@ -1,11 +1,11 @@
-"""Error against run time of the pillar-creep integrators (tactilepipe.volume.viscoelastic).
+"""Error against run time of the pillar-creep integrators (tactilepipe.papillarray.viscoelastic).
 
 For every integrator (exponential, implicit Euler, RK4, forward Euler), PapillArray sample rate
 (100/250/500/1000 Hz) and number of substeps, the reading of one pillar under a test load (the
 lift's 0.6-s grip ramp, then a 20-ms load step) is compared with a reference solution on a
 1-us grid, and one lift's worth of channels (2 sensors x 9 pillars x 3 axes) is timed.
 
-Writes results/stability/integrators.{csv,md} (tactilepipe.tables.write_table) and
+Writes results/stability/integrators.{csv,md} (tactilepipe.core.tables.write_table) and
 results/stability/integrators.png. The material is a soft silicone by default (two Prony modes:
 5 % at 0.5 ms - far below every sample period, so the system is stiff - and 5 % at 1.5 s); the
 simulators' own default has no creep until a measured curve exists (params.yaml).
@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from tactilepipe.atomic import save_figure
-from tactilepipe.plotting import close, figure
-from tactilepipe.tables import write_table
-from tactilepipe.volume import viscoelastic as ve
+from tactilepipe.core.atomic import save_figure
+from tactilepipe.core.plotting import close, figure
+from tactilepipe.core.tables import write_table
+from tactilepipe.papillarray import viscoelastic as ve
 
 REPO = Path(__file__).resolve().parents[1]
 COLOURS = {"exponential": "#4C72B0", "implicit_euler": "#55A868", "rk4": "#C44E52", "euler": "#8172B2"}

@@ -21,8 +21,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-from tactilepipe.config import load_params
-from tactilepipe.tool import simulate as tsim
+from tactilepipe.core.config import load_params
+from tactilepipe.tool import sim as tsim
 
 REPO = Path(__file__).resolve().parents[1]
 LOAD = """
@@ -38,8 +38,8 @@ while time.time() < end:
 def untrained_checkpoint(p: dict, path: Path) -> Path:
     import dataclasses
     import torch
-    from tactilepipe.tool.model import build_model
-    from tactilepipe.tool.train import CHECKPOINT_FORMAT, TrainConfig
+    from tactilepipe.tool.model.network import build_model
+    from tactilepipe.tool.model.train import CHECKPOINT_FORMAT, TrainConfig
     tt = p["tool_train"]
     size = tt["image_size"]
     cfg = TrainConfig(variant="full", depth=tt["depth"], image_size=size)

@@ -17,12 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from tactilepipe.config import load_params
-from tactilepipe.errors import InputError
-from tactilepipe.tool import simulate as tsim
-from tactilepipe.tool.importers import open_trial
-from tactilepipe.tool.ingest import ingest_trial
-from tactilepipe.tool.raw import SensorFrames
+from tactilepipe.core.config import load_params
+from tactilepipe.core.errors import InputError
+from tactilepipe.tool import sim as tsim
+from tactilepipe.tool.formats.trials import open_trial
+from tactilepipe.tool.data.ingest import ingest_trial
+from tactilepipe.tool.formats.raw import SensorFrames
 
 KINDS = ("dim", "near_black", "dropped")
 

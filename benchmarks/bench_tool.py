@@ -25,13 +25,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from tactilepipe.config import load_params
-from tactilepipe.tool import simulate as tsim
-from tactilepipe.tool.dataset import build_tool_dataset
-from tactilepipe.tool.ingest import ingest_trial
-from tactilepipe.tool.loader import ToolFrames
-from tactilepipe.tool.native_import import read_native_trial
-from tactilepipe.tool.predict import stream_predictions
+from tactilepipe.core.config import load_params
+from tactilepipe.tool import sim as tsim
+from tactilepipe.tool.data.dataset import build_tool_dataset
+from tactilepipe.tool.data.ingest import ingest_trial
+from tactilepipe.tool.data.loader import ToolFrames
+from tactilepipe.tool.formats.native_import import read_native_trial
+from tactilepipe.tool.model.predict import stream_predictions
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -131,8 +131,8 @@ def _untrained_checkpoint(p: dict, path: Path) -> Path:
     """A checkpoint of a freshly initialised default-scale full model, in the trainer's format."""
     import dataclasses
     import torch
-    from tactilepipe.tool.model import build_model
-    from tactilepipe.tool.train import CHECKPOINT_FORMAT, TrainConfig
+    from tactilepipe.tool.model.network import build_model
+    from tactilepipe.tool.model.train import CHECKPOINT_FORMAT, TrainConfig
     tt, size = p["tool_train"], p["tool_ingest"]["image_size"]
     cfg = TrainConfig(variant="full", depth=tt["depth"], image_size=size)
     model = build_model("full", tt["depth"], size)

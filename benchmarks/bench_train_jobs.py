@@ -17,8 +17,8 @@ import multiprocessing as mp
 import time
 from pathlib import Path
 
-from tactilepipe.config import load_params
-from tactilepipe.tool.train import train_throughput
+from tactilepipe.core.config import load_params
+from tactilepipe.tool.model.train import train_throughput
 
 REPO = Path(__file__).resolve().parents[1]
 

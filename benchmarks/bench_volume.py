@@ -21,9 +21,9 @@ from pathlib import Path
 
 from rosbags.rosbag1 import Reader
 
-from tactilepipe.config import load_params
-from tactilepipe.papillarray import typestore
-from tactilepipe.shards import ingest_bag
+from tactilepipe.core.config import load_params
+from tactilepipe.papillarray.messages import typestore
+from tactilepipe.papillarray.shards import ingest_bag
 from tactilepipe.volume.simulate import session_plan, write_lift_bag
 
 REPO = Path(__file__).resolve().parents[1]

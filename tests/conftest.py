@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from tactilepipe.config import REPO_ROOT, load_params
-from tactilepipe.shards import ingest_bag
+from tactilepipe.core.config import REPO_ROOT, load_params
+from tactilepipe.papillarray.shards import ingest_bag
 from tactilepipe.volume import simulate as vsim
 
 from support import bags

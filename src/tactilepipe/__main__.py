@@ -1,3 +1,3 @@
-from tactilepipe.cli import main
+from tactilepipe.cli.main import main
 
 raise SystemExit(main())

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from tactilepipe.config import load_params
-from tactilepipe.tool.evaluate import linear_fit_predictions, summarise, tactile_rmse_features
-from tactilepipe.tool.loader import ToolFrames
-from tactilepipe.tool.run_model import LABELS, train_and_predict
+from tactilepipe.core.config import load_params
+from tactilepipe.tool.model.evaluate import linear_fit_predictions, summarise, tactile_rmse_features
+from tactilepipe.tool.data.loader import ToolFrames
+from tactilepipe.tool.model.run import LABELS, train_and_predict
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from study_common import baseline_on, load_scene, study_arguments, train_on
-from tactilepipe.tool.splits import thin_training
+from tactilepipe.tool.data.splits import thin_training
 
 
 def main() -> None:

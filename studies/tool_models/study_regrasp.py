@@ -30,10 +30,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from tactilepipe.config import load_params
-from tactilepipe.tool import layout
-from tactilepipe.tool import simulate as ts
-from tactilepipe.tool.ingest import preprocess
+from tactilepipe.core.config import load_params
+from tactilepipe.tool.formats import native_layout as layout
+from tactilepipe.tool import sim as ts
+from tactilepipe.tool.data.ingest import preprocess
 
 
 def rms(a: np.ndarray, b: np.ndarray) -> float:

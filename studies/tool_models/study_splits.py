@@ -22,7 +22,7 @@ from pathlib import Path
 import pandas as pd
 
 from study_common import baseline_on, load_scene, study_arguments, train_on
-from tactilepipe.tool.splits import make_split
+from tactilepipe.tool.data.splits import make_split
 
 
 def main() -> None:

@@ -17,9 +17,9 @@ import pandas as pd
 import pytest
 import torch
 
-from tactilepipe.config import load_params
-from tactilepipe.errors import TactilepipeError
-from tactilepipe.estimate import estimate_report, forward_flops, planned_pairs, training_flops
+from tactilepipe.core.config import load_params
+from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.pipeline.estimate import estimate_report, forward_flops, planned_pairs, training_flops
 
 from support.project import BIN, ENV, REPO
 
@@ -80,7 +80,7 @@ def test_the_network_asks_for_a_gpu_only_at_the_paper_scale(scale, gpu):
 
 
 def test_a_wrong_resource_key_stops_with_its_name(tmp_path):
-    from tactilepipe.errors import ConfigError
+    from tactilepipe.core.errors import ConfigError
     with pytest.raises(ConfigError, match=r"resources.rules.*tool_trian"):
         load_params(REPO / "params.yaml", {"resources": {"rules": {"tool_trian": {"gpu": 1}}}})
     with pytest.raises(ConfigError, match=r"resources.rules.tool_train.gpu"):
@@ -155,7 +155,7 @@ def test_paper_dry_run_prints_the_estimate_and_builds_nothing(tmp_path):
 @pytest.fixture
 def tiny_data(tmp_path):
     from support.tool_data import make_dataset, make_split_dict
-    from tactilepipe.tool.loader import ToolFrames
+    from tactilepipe.tool.data.loader import ToolFrames
     root = make_dataset(tmp_path / "data", n_trials=8, per_trial=6)
     split = make_split_dict(ToolFrames(root, "normal"))
     (tmp_path / "split.json").write_text(json.dumps(split))
@@ -164,7 +164,7 @@ def tiny_data(tmp_path):
 
 @pytest.mark.skipif(torch.cuda.is_available(), reason="checks the error when CUDA is missing")
 def test_device_cuda_without_cuda_is_one_clear_error(tiny_data, tmp_path):
-    from tactilepipe.tool.train import resolve_device
+    from tactilepipe.tool.model.train import resolve_device
     assert resolve_device("auto").type == "cpu"
     with pytest.raises(TactilepipeError, match="device 'cuda' requested but CUDA is not available"):
         resolve_device("cuda")
@@ -180,8 +180,8 @@ def test_device_cuda_without_cuda_is_one_clear_error(tiny_data, tmp_path):
 
 
 def test_mixed_precision_only_on_cuda(tiny_data, tmp_path, monkeypatch):
-    from tactilepipe.tool import train as train_mod
-    from tactilepipe.tool.loader import ToolFrames
+    from tactilepipe.tool.model import train as train_mod
+    from tactilepipe.tool.data.loader import ToolFrames
     root, _, split = tiny_data
     calls = []
     real = torch.autocast
@@ -199,8 +199,8 @@ def test_mixed_precision_only_on_cuda(tiny_data, tmp_path, monkeypatch):
 
 
 def test_the_cli_hands_device_and_amp_to_the_trainer(tiny_data, tmp_path, monkeypatch):
-    from tactilepipe import cli
-    from tactilepipe.tool import train as train_mod
+    from tactilepipe.cli import main as cli
+    from tactilepipe.tool.model import train as train_mod
     root, split, _ = tiny_data
     seen = {}
 

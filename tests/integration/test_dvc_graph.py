@@ -165,15 +165,15 @@ def test_committed_dvc_yaml_is_what_the_generator_makes():
 
 def test_generator_lists_each_stage_code_closure_and_declared_params():
     stages = yaml.safe_load((REPO / "dvc.yaml").read_text())["stages"]
-    from tactilepipe import codedeps
+    from tactilepipe.pipeline import codedeps
     drift_code = {d for d in stages["simulate_drift"]["deps"] if d.endswith(".py")}
     # the drift simulator imports the volume simulator and its viscoelastic pillars
-    assert {"src/tactilepipe/volume/simulate.py", "src/tactilepipe/volume/viscoelastic.py"} <= drift_code
+    assert {"src/tactilepipe/volume/simulate.py", "src/tactilepipe/papillarray/viscoelastic.py"} <= drift_code
     assert drift_code == set(codedeps.stage_files("cmd_simulate_drift"))
-    assert "src/tactilepipe/tool/model.py" in stages["tool_models"]["deps"]
+    assert "src/tactilepipe/tool/model/network.py" in stages["tool_models"]["deps"]
     # every rule runs `python -m tactilepipe`: the package's __main__ is code of every stage
     assert all("src/tactilepipe/__main__.py" in s["deps"] for s in stages.values())
-    assert "src/tactilepipe/tool/model.py" not in stages["volume"]["deps"]
+    assert "src/tactilepipe/tool/model/network.py" not in stages["volume"]["deps"]
     # the analysis reads no simulator setting (provenance.json records them for a simulated session)
     assert not any(k.startswith("simulate") for k in codedeps.stage_param_keys("cmd_report_drift"))
     assert "src/tactilepipe/drift/simulate.py" in stages["drift"]["deps"]   # the simulated session's provenance

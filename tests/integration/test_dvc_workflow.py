@@ -349,14 +349,14 @@ TOOL_DATA_ON = {"ingest_tool", "tool_clock_figure", "tool_dataset", "tool_split"
 EDITS = [   # (module, snakemake rules planned, DVC stages out of date, an output the edit must rewrite)
     ("volume/report.py", {"volume_report"}, {"volume"}, "results/volume/metrics.json"),
     ("drift/analyse.py", {"drift_report"}, {"drift"}, "results/drift/fits.csv"),
-    ("tool/model.py", {"tool_train", "tool_model_report"}, {"tool_models"},
+    ("tool/model/network.py", {"tool_train", "tool_model_report"}, {"tool_models"},
      "results/tool_normal/models/full/best.pt"),
     # the tool models' provenance records the ingest code: the report re-runs (not the trainings)
-    ("tool/ingest.py", TOOL_DATA_ON, {"tool_data", "tool_models"},
+    ("tool/data/ingest.py", TOOL_DATA_ON, {"tool_data", "tool_models"},
      "results/tool/shards/sim-smoke/paper_knife_p00_normal00.parquet"),
     ("volume/simulate.py", VOLUME_ALL, {"simulate_volume", "simulate_drift", "volume", "drift"},
      "raw/volume/sim-smoke/v000_main_l00.bag"),
-    ("papillarray.py", VOLUME_ALL, {"simulate_volume", "simulate_drift", "volume", "drift"},
+    ("papillarray/messages.py", VOLUME_ALL, {"simulate_volume", "simulate_drift", "volume", "drift"},
      "results/volume/shards/sim-smoke/v000_main_l00.parquet"),
 ]
 

@@ -311,7 +311,7 @@ def test_results_folder_without_write_permission(tmp_path, good_bag):
 
 
 def test_stale_temporary_of_a_killed_writer_is_removed_by_the_next_write(tmp_path):
-    from tactilepipe.atomic import write_text
+    from tactilepipe.core.atomic import write_text
     target = tmp_path / "metrics.json"
     stale = [tmp_path / ".metrics.json.k1ll3d.tmp", tmp_path / ".metrics.json.dir0.tmp"]
     stale[0].write_text("half")

@@ -20,10 +20,10 @@ import pytest
 import torch
 import yaml
 
-from tactilepipe.config import load_params
-from tactilepipe.errors import InputError
-from tactilepipe.tool import public_archive as pa
-from tactilepipe.tool.importers import list_trials
+from tactilepipe.core.config import load_params
+from tactilepipe.core.errors import InputError
+from tactilepipe.tool.formats import public_archive as pa
+from tactilepipe.tool.formats.trials import list_trials
 
 from support.project import BIN, REPO, copy_project, dvc, git, run
 
@@ -46,9 +46,9 @@ def _digest(path: Path) -> dict:
 def stand_ins(tmp_path_factory) -> dict:
     """Served files: data_normal.zip (simulated smoke trials) and best_model_normal.pth (random
     weights of the full model, depth 18, under the public key names); the simulator's trials.csv."""
-    from tactilepipe.tool.public_weights import to_public
-    from tactilepipe.tool.model import build_model
-    from tactilepipe.tool.simulate import simulate_public_session
+    from tactilepipe.tool.model.public_weights import to_public
+    from tactilepipe.tool.model.network import build_model
+    from tactilepipe.tool.sim import simulate_public_session
     root = tmp_path_factory.mktemp("study000_sim")
     params = load_params(REPO / "params.yaml", {"scale": "smoke"})
     names = simulate_public_session(root / "sim", params)
@@ -188,8 +188,8 @@ def test_the_study_dvc_yaml_is_generated_with_exact_code_deps():
     for stage in stages.values():
         assert "../../src/tactilepipe" not in stage["deps"]
         assert all(Path(REPO / STUDY / d).resolve().is_file() for d in stage["deps"] if d.endswith(".py"))
-    assert "../../src/tactilepipe/tool/public_weights.py" in stages["published"]["deps"]
-    assert "../../src/tactilepipe/tool/train.py" not in stages["unpack_normal"]["deps"]
+    assert "../../src/tactilepipe/tool/model/public_weights.py" in stages["published"]["deps"]
+    assert "../../src/tactilepipe/tool/model/train.py" not in stages["unpack_normal"]["deps"]
 
 
 # --- the archive checks on their own -----------------------------------------------------------
@@ -268,10 +268,10 @@ def test_a_public_trial_keeps_frame_0_as_its_reference_when_its_label_is_dropped
     is no sample; ingest stores it, the dataset uses it."""
     import numpy as np
 
-    from tactilepipe.tool.dataset import build_tool_dataset
-    from tactilepipe.tool.importers import open_trial
-    from tactilepipe.tool.ingest import ingest_trial, preprocess
-    from tactilepipe.tool.public_layout import write_public_trial
+    from tactilepipe.tool.data.dataset import build_tool_dataset
+    from tactilepipe.tool.formats.trials import open_trial
+    from tactilepipe.tool.data.ingest import ingest_trial, preprocess
+    from tactilepipe.tool.formats.public_layout import write_public_trial
     rng = np.random.default_rng(1)
     left = [rng.integers(60, 200, (48, 64, 3), dtype=np.uint8) for _ in range(6)]
     right = [rng.integers(60, 200, (48, 64, 3), dtype=np.uint8) for _ in range(6)]

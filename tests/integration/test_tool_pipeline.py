@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tactilepipe.config import REPO_ROOT, load_params
-from tactilepipe.tool import simulate as ts
-from tactilepipe.tool.dataset import build_tool_dataset
-from tactilepipe.tool.importers import list_trials, open_trial
-from tactilepipe.tool.ingest import ingest_trial
-from tactilepipe.tool.loader import ToolFrames
-from tactilepipe.tool.rosbag_import import write_ros_trial
+from tactilepipe.core.config import REPO_ROOT, load_params
+from tactilepipe.tool import sim as ts
+from tactilepipe.tool.data.dataset import build_tool_dataset
+from tactilepipe.tool.formats.trials import list_trials, open_trial
+from tactilepipe.tool.data.ingest import ingest_trial
+from tactilepipe.tool.data.loader import ToolFrames
+from tactilepipe.tool.formats.rosbag import write_ros_trial
 
 
 @pytest.fixture(scope="module")

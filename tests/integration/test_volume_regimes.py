@@ -10,9 +10,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tactilepipe.cli import main
-from tactilepipe.config import REPO_ROOT
-from tactilepipe.errors import ConfigError
+from tactilepipe.papillarray import physics
+from tactilepipe.cli.main import main
+from tactilepipe.core.config import REPO_ROOT
+from tactilepipe.core.errors import ConfigError
 from tactilepipe.volume import grasp
 from tactilepipe.volume import simulate as vsim
 from tactilepipe.volume.regimes import PAPER_R2, reproduces_ordering
@@ -67,7 +68,7 @@ def test_position_regime_fz_rises_with_fill_level(exact_sim):
 
 def test_position_grip_solves_the_series_springs(exact_sim):
     pos = exact_sim["position"]
-    offsets = vsim.pillar_offsets_mm(exact_sim["pillar_height_steps_mm"])
+    offsets = physics.pillar_offsets_mm(exact_sim["pillar_height_steps_mm"])
     k_n = exact_sim["pillar_normal_stiffness_n_per_mm"]
     for volume in (0.0, 250.0):
         force = grasp.position_grip_n(pos, volume, pos["squeeze_mm"], offsets, k_n)
@@ -151,13 +152,13 @@ def test_crosstalk_adds_the_set_fraction_of_the_shear(exact_sim, fraction):
 # --- configuration --------------------------------------------------------------------------------
 
 def test_capped_container_needs_headspace(params_path):
-    from tactilepipe.config import load_params
+    from tactilepipe.core.config import load_params
     with pytest.raises(ConfigError, match="container_capacity_ml"):
         load_params(params_path, {"simulate_volume": {"position": {"container_capacity_ml": 300.0}}})
 
 
 def test_a_regime_may_only_change_grasp_keys(params_path):
-    from tactilepipe.config import load_params
+    from tactilepipe.core.config import load_params
     with pytest.raises(ConfigError, match="volume_regimes"):
         load_params(params_path, {"volume_regimes": {"heavy": {"container_mass_g": 100.0}}})
 

@@ -24,15 +24,15 @@ import numpy as np
 import pytest
 import yaml
 
-from tactilepipe import papillarray as pa
-from tactilepipe.config import load_params
-from tactilepipe.errors import ConfigError, InputError
-from tactilepipe.shards import ingest_bag
-from tactilepipe.tool import rosbag_import as ri
-from tactilepipe.tool.dataset import build_tool_dataset
-from tactilepipe.tool.importers import open_trial
-from tactilepipe.tool.ingest import ingest_trial, read_shard_info
-from tactilepipe.tool.layout import FRAME_H, FRAME_W
+from tactilepipe.papillarray import messages as pa
+from tactilepipe.core.config import load_params
+from tactilepipe.core.errors import ConfigError, InputError
+from tactilepipe.papillarray.shards import ingest_bag
+from tactilepipe.tool.formats import rosbag as ri
+from tactilepipe.tool.data.dataset import build_tool_dataset
+from tactilepipe.tool.formats.trials import open_trial
+from tactilepipe.tool.data.ingest import ingest_trial, read_shard_info
+from tactilepipe.tool.formats.native_layout import FRAME_H, FRAME_W
 from tactilepipe.drift.analyse import recording_reading
 from tactilepipe.volume.dataset import read_shard
 from tactilepipe.volume.labels import read_session_labels
@@ -512,7 +512,7 @@ for _name, (_text, _problem, _record) in SERIAL_ERROR_CASES.items():
         return Case(c.native(trial), path, problem, record)
 
 
-# The native trial's force clock, refined against the images (tool/clock_sync.py)
+# The native trial's force clock, refined against the images (tool/data/clock_sync.py)
 
 def _rewrite_frames(trial: Path, sensor: str, frame) -> None:
     for i in range(N_FRAMES):
@@ -645,7 +645,7 @@ for _name, (_text, _problem, _record) in TRIALS_CSV_CASES.items():
 
 @case("public_trials_csv/session_listing_names_every_trial_lacking_a_tool")
 def _(c):
-    from tactilepipe.tool.importers import list_trials
+    from tactilepipe.tool.formats.trials import list_trials
     session = c.copy("public")
     path = session / "trials.csv"
     path.write_text("trial,tool,orientation_deg,insertion_mm\nother,knife,5,10\n")
@@ -740,7 +740,7 @@ def test_lifts_csv_with_a_byte_order_mark_and_spaces_reads(tmp_path):
 # params.yaml
 
 def _params_case(c: Ctx, change: Callable[[dict], None] | str, problem: str) -> Case:
-    from tactilepipe.config import REPO_ROOT
+    from tactilepipe.core.config import REPO_ROOT
     raw = yaml.safe_load((REPO_ROOT / "params.yaml").read_text())
     path = c.tmp / "in" / "params.yaml"
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -13,11 +13,11 @@ import sys
 import numpy as np
 import pytest
 
-from tactilepipe import papillarray as pa
-from tactilepipe.config import REPO_ROOT
-from tactilepipe.errors import ArgumentError, InputError, TactilepipeError
-from tactilepipe.metrics import r2_detail
-from tactilepipe.shards import DEFAULT_POSE_TOPIC, read_papillarray_bag
+from tactilepipe.papillarray import messages as pa
+from tactilepipe.core.config import REPO_ROOT
+from tactilepipe.core.errors import ArgumentError, InputError, TactilepipeError
+from tactilepipe.core.metrics import r2_detail
+from tactilepipe.papillarray.shards import DEFAULT_POSE_TOPIC, read_papillarray_bag
 
 from support.project import REPO
 
@@ -54,7 +54,7 @@ def test_cli_bad_ros_topics_is_one_line_naming_the_parameter(tmp_path):
 
 def test_checkpoint_with_bad_metadata_names_the_file(tmp_path):
     torch = pytest.importorskip("torch")
-    from tactilepipe.tool.train import CHECKPOINT_FORMAT, load_model
+    from tactilepipe.tool.model.train import CHECKPOINT_FORMAT, load_model
     ckpt = tmp_path / "best.pt"
     torch.save({"format": CHECKPOINT_FORMAT, "meta": {"variant": "tiny", "depth": 18, "image_size": 32},
                 "config": {}, "model": {}}, ckpt)

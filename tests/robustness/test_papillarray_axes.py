@@ -10,8 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tactilepipe.config import load_params
-from tactilepipe.errors import ConfigError, InputError
+from tactilepipe.core.config import load_params
+from tactilepipe.core.errors import ConfigError, InputError
 from tactilepipe.volume.dataset import build_dataset
 
 
@@ -51,7 +51,7 @@ def test_the_axis_map_reads_a_reversed_sensor_right(sim_lifts, smoke_params, tmp
 
 
 def test_an_axis_map_that_is_not_a_permutation_is_refused(tmp_path):
-    from tactilepipe.config import REPO_ROOT
+    from tactilepipe.core.config import REPO_ROOT
     path = tmp_path / "params.yaml"
     path.write_text((REPO_ROOT / "params.yaml").read_text().replace(
         'sensor_1: {x: "+x", y: "+y", z: "+z"}', 'sensor_1: {x: "+x", y: "+x", z: "+z"}'))

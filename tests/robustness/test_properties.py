@@ -13,13 +13,13 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from tactilepipe import papillarray as pa
-from tactilepipe.config import load_params
-from tactilepipe.errors import ConfigError, InputError
-from tactilepipe.shards import ingest_bag
-from tactilepipe.tool.layout import TrialMeta, read_calibration, read_frame_index
-from tactilepipe.tool.public_layout import _parse_force
-from tactilepipe.tool.serial_log import read_serial_log
+from tactilepipe.papillarray import messages as pa
+from tactilepipe.core.config import load_params
+from tactilepipe.core.errors import ConfigError, InputError
+from tactilepipe.papillarray.shards import ingest_bag
+from tactilepipe.tool.formats.native_layout import TrialMeta, read_calibration, read_frame_index
+from tactilepipe.tool.formats.public_layout import _parse_force
+from tactilepipe.tool.formats.serial_log import read_serial_log
 
 from support.bags import sensor_stream, write_ros1_bag
 
@@ -281,7 +281,7 @@ def test_params_file_of_any_bytes_loads_or_is_a_config_error(data):
 @given(st.dictionaries(st.sampled_from(["seed", "scale", "folds", "mlp", "scenes", "segment", "unknown"]),
                        json_values, max_size=3))
 def test_params_overrides_of_any_shape_load_or_are_a_config_error(overrides):
-    from tactilepipe.config import REPO_ROOT
+    from tactilepipe.core.config import REPO_ROOT
     try:
         load_params(REPO_ROOT / "params.yaml", overrides)
     except ConfigError:

@@ -9,11 +9,11 @@ import shutil
 import cv2
 import pytest
 
-from tactilepipe.errors import InputError
-from tactilepipe.tool.dataset import build_tool_dataset
-from tactilepipe.tool.importers import open_trial
-from tactilepipe.tool.ingest import ingest_trial
-from tactilepipe.tool.report_data import qc_markdown
+from tactilepipe.core.errors import InputError
+from tactilepipe.tool.data.dataset import build_tool_dataset
+from tactilepipe.tool.formats.trials import open_trial
+from tactilepipe.tool.data.ingest import ingest_trial
+from tactilepipe.tool.report.data import qc_markdown
 
 from support.sessions import INGEST, N_FRAMES, SIZE, SYNC, digit_frame, make_native_session, make_public_session
 
@@ -70,8 +70,8 @@ def test_landscape_frames_are_noted_and_not_mixed_with_portrait_ones(native, pub
 
 
 def test_numbers_yaml_1_1_reads_as_strings_are_numbers_where_the_schema_wants_one(tmp_path):
-    from tactilepipe.config import REPO_ROOT, load_params
-    from tactilepipe.errors import ConfigError
+    from tactilepipe.core.config import REPO_ROOT, load_params
+    from tactilepipe.core.errors import ConfigError
     text = (REPO_ROOT / "params.yaml").read_text()
     assert "  tol: 0.0001" in text
     path = tmp_path / "params.yaml"

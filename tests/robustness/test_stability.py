@@ -17,19 +17,20 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tactilepipe.errors import ConfigError, InputError, TactilepipeError
-from tactilepipe.metrics import (R2_CONSTANT, R2_EMPTY, R2_NONFINITE, format_metric, r2_detail,
+from tactilepipe.papillarray import physics
+from tactilepipe.core.errors import ConfigError, InputError, TactilepipeError
+from tactilepipe.core.metrics import (R2_CONSTANT, R2_EMPTY, R2_NONFINITE, format_metric, r2_detail,
                                  r2_score)
-from tactilepipe.tables import write_table
+from tactilepipe.core.tables import write_table
 from tactilepipe.volume import baseline
 from tactilepipe.volume import simulate as vsim
-from tactilepipe.volume import viscoelastic as ve
+from tactilepipe.papillarray import viscoelastic as ve
 from tactilepipe.volume.folds import make_folds
 from tactilepipe.volume.mlp import MLPConfig, MLPDivergedError, MLPRegressor
 
 from support.volume_data import baseline_data
 
-G = vsim.G
+G = physics.G
 SILICONE = ve.Prony((0.05, 0.05), (0.0005, 1.5))      # the benchmark's soft silicone: stiff at 100-1000 Hz
 
 
@@ -135,9 +136,9 @@ def test_integrator_benchmark_table(tmp_path):
 
 @pytest.mark.parametrize("k", [4.0, 1e3, 1e6])
 def test_normal_load_map_of_very_stiff_pillars_sums_to_the_grip(k, vsim_params):
-    offsets = vsim.pillar_offsets_mm(vsim_params["pillar_height_steps_mm"])
+    offsets = physics.pillar_offsets_mm(vsim_params["pillar_height_steps_mm"])
     grip = np.array([0.0, 1e-3, 6.0, 600.0])
-    fz = vsim.normal_load_map(grip, offsets, np.array([0.01, -0.004]), vsim_params["pillar_pitch_mm"], k)
+    fz = physics.normal_load_map(grip, offsets, np.array([0.01, -0.004]), vsim_params["pillar_pitch_mm"], k)
     assert np.isfinite(fz).all() and (fz >= 0).all()
     np.testing.assert_allclose(fz.sum(axis=1), grip, rtol=1e-9, atol=1e-10)    # N
 
@@ -166,7 +167,7 @@ def test_heavy_load_slides_at_the_kinetic_limit_without_nan(quiet):
 
 
 def test_forces_beyond_the_pillar_range_saturate_and_are_counted(quiet, tmp_path):
-    from tactilepipe.shards import ingest_bag
+    from tactilepipe.papillarray.shards import ingest_bag
     strong = {**quiet, "grip_force_n": 60.0}                 # centre pillar ~ 20 N > 2 mm x 4 N/mm
     rec = vsim.write_lift_bag(tmp_path / "strong.bag", _lift(300.0), strong, 4)
     limit = strong["pillar_travel_mm"] * strong["pillar_normal_stiffness_n_per_mm"]
@@ -199,8 +200,8 @@ def test_drift_recordings_count_saturation(smoke_params):
 
 @pytest.fixture
 def pad_fz(vsim_params) -> np.ndarray:
-    offsets = vsim.pillar_offsets_mm(vsim_params["pillar_height_steps_mm"])
-    return vsim.normal_load_map(np.array([6.0]), offsets, np.zeros(2), vsim_params["pillar_pitch_mm"],
+    offsets = physics.pillar_offsets_mm(vsim_params["pillar_height_steps_mm"])
+    return physics.normal_load_map(np.array([6.0]), offsets, np.zeros(2), vsim_params["pillar_pitch_mm"],
                                 vsim_params["pillar_normal_stiffness_n_per_mm"])[0]
 
 
@@ -236,7 +237,7 @@ def test_lift_at_the_slip_limit(quiet):
 # ================================ zero force for a whole trial ===================================
 
 def test_zero_force_lift_is_refused_by_force_segmentation(quiet, smoke_params, tmp_path):
-    from tactilepipe.shards import ingest_bag
+    from tactilepipe.papillarray.shards import ingest_bag
     from tactilepipe.volume import dataset
     empty = {**smoke_params["simulate_volume"], "grip_force_n": 0.0}       # nothing grasped
     rec = vsim.write_lift_bag(tmp_path / "empty.bag", _lift(100.0), empty, 1)
@@ -249,7 +250,7 @@ def test_zero_force_lift_is_refused_by_force_segmentation(quiet, smoke_params, t
 
 
 def test_zero_force_lift_is_not_silently_kept_by_pose_segmentation(smoke_params, tmp_path):
-    from tactilepipe.shards import ingest_bag
+    from tactilepipe.papillarray.shards import ingest_bag
     from tactilepipe.volume import dataset
     empty = {**smoke_params["simulate_volume"], "grip_force_n": 0.0}
     vsim.write_lift_bag(tmp_path / "empty.bag", _lift(100.0), empty, 1)
@@ -264,7 +265,7 @@ def test_zero_force_lift_is_not_silently_kept_by_pose_segmentation(smoke_params,
 
 
 def test_pose_segmentation_names_the_missing_load(smoke_params, tmp_path):
-    from tactilepipe.shards import ingest_bag
+    from tactilepipe.papillarray.shards import ingest_bag
     from tactilepipe.volume import dataset
     empty = {**smoke_params["simulate_volume"], "grip_force_n": 0.0}
     vsim.write_lift_bag(tmp_path / "empty.bag", _lift(100.0), empty, 1)
@@ -294,13 +295,13 @@ def test_zero_force_drift_recordings(smoke_params):
 # ================================ tool rig: ADC rails and gel depth ==============================
 
 def _tool_spec(params):
-    from tactilepipe.tool import simulate as tsim
+    from tactilepipe.tool import sim as tsim
     return tsim.session_plan(params)[0]
 
 
 def test_nano17_beyond_range_clips_at_the_adc_rails(smoke_params):
-    from tactilepipe.tool import layout
-    from tactilepipe.tool import simulate as tsim
+    from tactilepipe.tool.formats import native_layout as layout
+    from tactilepipe.tool import sim as tsim
     p = copy.deepcopy(smoke_params)
     p["simulate_tool"]["press"]["peak_force_n"] = [80.0, 120.0]     # beyond +-33.6 N of the 10-bit span
     trial = tsim._Trial(_tool_spec(p), p)
@@ -316,8 +317,8 @@ def test_nano17_beyond_range_clips_at_the_adc_rails(smoke_params):
 
 
 def test_tool_ingest_reports_adc_saturation(smoke_params, tmp_path):
-    from tactilepipe.tool import simulate as tsim
-    from tactilepipe.tool.serial_log import read_serial_log
+    from tactilepipe.tool import sim as tsim
+    from tactilepipe.tool.formats.serial_log import read_serial_log
     p = copy.deepcopy(smoke_params)
     p["simulate_tool"]["press"]["peak_force_n"] = [80.0, 120.0]
     ser = tsim._Trial(_tool_spec(p), p).serial()
@@ -329,13 +330,13 @@ def test_tool_ingest_reports_adc_saturation(smoke_params, tmp_path):
 
 def test_saturated_nano17_samples_are_dropped_counted_and_shown(smoke_params, tmp_path):
     """Through the native import, ingest, dataset and QC report: no clipped force reaches a label."""
-    from tactilepipe.tool import layout
-    from tactilepipe.tool import simulate as tsim
-    from tactilepipe.tool.dataset import build_tool_dataset
-    from tactilepipe.tool.importers import open_trial
-    from tactilepipe.tool.ingest import ingest_trial, read_shard_info
-    from tactilepipe.tool.report_data import qc_markdown
-    from tactilepipe.tool.serial_log import read_serial_log
+    from tactilepipe.tool.formats import native_layout as layout
+    from tactilepipe.tool import sim as tsim
+    from tactilepipe.tool.data.dataset import build_tool_dataset
+    from tactilepipe.tool.formats.trials import open_trial
+    from tactilepipe.tool.data.ingest import ingest_trial, read_shard_info
+    from tactilepipe.tool.report.data import qc_markdown
+    from tactilepipe.tool.formats.serial_log import read_serial_log
     p = copy.deepcopy(smoke_params)
     p["simulate_tool"]["press"]["peak_force_n"] = [80.0, 120.0]
     spec = _tool_spec(p)
@@ -360,7 +361,7 @@ def test_saturated_nano17_samples_are_dropped_counted_and_shown(smoke_params, tm
 
 
 def test_a_gauge_stuck_at_a_rail_is_an_error(tmp_path):
-    from tactilepipe.tool.serial_log import read_serial_log
+    from tactilepipe.tool.formats.serial_log import read_serial_log
     path = tmp_path / "force.log"
     path.write_text("# start_host_ns=1000\n" + "".join(f"{100 + 67 * i},512,512,1023,512,512,512\n"
                                                          for i in range(20)))
@@ -376,7 +377,7 @@ def test_a_gauge_stuck_at_a_rail_is_an_error(tmp_path):
 
 @pytest.mark.parametrize("e_star", [1.0, 1000.0])
 def test_gel_depth_saturates_at_h_max_for_heavy_presses_and_stiff_gels(smoke_params, e_star):
-    from tactilepipe.tool import simulate as tsim
+    from tactilepipe.tool import sim as tsim
     p = copy.deepcopy(smoke_params)
     p["simulate_tool"]["grasp"]["e_star_mpa"] = e_star
     out = tsim.render_at_forces(_tool_spec(p), p, normal_n=[0.0, 30.0, 3000.0])
@@ -452,7 +453,7 @@ def test_single_class_scene(smoke_params):
 
 
 def test_labels_from_1e_minus_3_to_1e3_newtons():
-    from tactilepipe.tool.evaluate import evaluate
+    from tactilepipe.tool.model.evaluate import evaluate
     rng = np.random.default_rng(1)
     y = 10 ** rng.uniform(-3, 3, 3000)                        # N, six decades
     x = np.c_[y * (1 + 0.01 * rng.standard_normal(len(y))), rng.standard_normal(len(y))]
@@ -485,13 +486,13 @@ def test_mlp_stops_on_a_non_finite_loss_naming_epoch_and_batch():
 
 
 def test_tool_training_stops_on_an_inf_label_naming_epoch_and_batch(tmp_path):
-    """tool/train.py: an inf label (not only NaN, tested in test_tool_model) stops training with
+    """tool/model/train.py: an inf label (not only NaN, tested in test_tool_model) stops training with
     the epoch, the batch and the sample index."""
     pytest.importorskip("torch")
     from support.tool_data import make_dataset, make_split_dict, quick_cfg
 
-    from tactilepipe.tool.loader import ToolFrames
-    from tactilepipe.tool.train import train
+    from tactilepipe.tool.data.loader import ToolFrames
+    from tactilepipe.tool.model.train import train
     root = make_dataset(tmp_path / "inf")
     samples = pd.read_parquet(root / "samples.parquet")
     samples.loc[5, "normal"] = np.inf
@@ -527,7 +528,7 @@ def test_mu_optimum_on_the_edge_is_flagged(smoke_params, mu_true, side, tmp_path
 # ================================ skewed force distributions =====================================
 
 def test_skewed_forces_get_per_window_metrics_with_counts(tmp_path):
-    from tactilepipe.tool.evaluate import WINDOW_EDGES, evaluate
+    from tactilepipe.tool.model.evaluate import WINDOW_EDGES, evaluate
     rng = np.random.default_rng(2)
     true = np.concatenate([rng.exponential(1.0, 5000), [25.0, 40.0], [-0.2]])   # almost all light, 2 heavy
     pred = true + rng.normal(0, 0.3, len(true))

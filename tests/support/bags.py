@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from rosbags.rosbag1 import Writer
 
-from tactilepipe import papillarray as pa
+from tactilepipe.papillarray import messages as pa
 
 
 def write_ros1_bag(path: str | Path, topics: dict[str, tuple[str, list[int], list[bytes]]]) -> Path:

@@ -11,10 +11,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from tactilepipe.config import load_params
-from tactilepipe.tool import public_layout as pl
-from tactilepipe.tool import rosbag_import as ri
-from tactilepipe.tool.layout import FRAME_H, FRAME_W, TrialMeta, write_calibration
+from tactilepipe.core.config import load_params
+from tactilepipe.tool.formats import public_layout as pl
+from tactilepipe.tool.formats import rosbag as ri
+from tactilepipe.tool.formats.native_layout import FRAME_H, FRAME_W, TrialMeta, write_calibration
 
 START_NS = 1_700_000_000_000_000_000
 CAL = np.diag([8.0, 8.0, 20.0, 100.0, 100.0, 100.0])

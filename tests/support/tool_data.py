@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from tactilepipe.tool.loader import ToolFrames
-from tactilepipe.tool.splits import label_stats
-from tactilepipe.tool.train import TrainConfig
+from tactilepipe.tool.data.loader import ToolFrames
+from tactilepipe.tool.data.splits import label_stats
+from tactilepipe.tool.model.train import TrainConfig
 
 S = 32            # image size of the training tests (the smoke scale)
 

@@ -1,6 +1,6 @@
 """The force clock of native trials: glitches in the images leave the offset within a frame period
 or are refused, never a silent shift; frozen cameras, flat force logs, an offset on the window's
-edge and a low-confidence fit are named (tool/clock_sync.py via tool/ingest.py)."""
+edge and a low-confidence fit are named (tool/data/clock_sync.py via tool/data/ingest.py)."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ import json
 import numpy as np
 import pytest
 
-from tactilepipe.config import load_params
-from tactilepipe.errors import InputError
-from tactilepipe.tool.ingest import ingest_trial, read_shard_info
-from tactilepipe.tool.raw import RawTrial, SensorFrames
+from tactilepipe.core.config import load_params
+from tactilepipe.core.errors import InputError
+from tactilepipe.tool.data.ingest import ingest_trial, read_shard_info
+from tactilepipe.tool.formats.raw import RawTrial, SensorFrames
 
 INGEST = load_params()["tool_ingest"]
 SIZE = 32
@@ -144,7 +144,7 @@ def test_a_low_confidence_fit_is_refused_or_falls_back_to_the_host_clock_as_conf
 
 
 def test_a_low_confidence_trial_can_be_left_out_of_the_dataset_and_named_in_qc(tmp_path):
-    from tactilepipe.tool.dataset import build_tool_dataset
+    from tactilepipe.tool.data.dataset import build_tool_dataset
     ingest = copy.deepcopy(INGEST)
     ingest["clock"]["on_low_score"] = "drop"
     bad = ingest_trial(make_raw(_unrelated), tmp_path / "bad.parquet", SIZE, ingest)
@@ -168,7 +168,7 @@ def test_the_shard_keeps_the_score_curve_for_the_qc_figure(tmp_path):
 
 
 def test_the_session_clock_figure_is_drawn_from_the_shards(tmp_path):
-    from tactilepipe.tool.clock_report import clock_figure
+    from tactilepipe.tool.data.clock_report import clock_figure
     shards = []
     for k in range(2):
         shards.append(tmp_path / f"s{k}.parquet")
@@ -178,7 +178,7 @@ def test_the_session_clock_figure_is_drawn_from_the_shards(tmp_path):
 
 
 def test_the_clock_figure_has_a_cli_stage(tmp_path):
-    from tactilepipe.cli import main
+    from tactilepipe.cli.main import main
     ingest_trial(make_raw(), tmp_path / "s0.parquet", SIZE, INGEST)
     assert main(["tool-clock-figure", "--shards", str(tmp_path / "s0.parquet"), "--out", str(tmp_path / "c.png")]) == 0
     assert (tmp_path / "c.png").exists()

@@ -8,10 +8,10 @@ import json
 import pytest
 import yaml
 
-from tactilepipe import cli
-from tactilepipe.atomic import atomic_path, write_json, write_text
-from tactilepipe.config import deep_merge, load_params
-from tactilepipe.errors import ConfigError
+from tactilepipe.cli import main as cli
+from tactilepipe.core.atomic import atomic_path, write_json, write_text
+from tactilepipe.core.config import deep_merge, load_params
+from tactilepipe.core.errors import ConfigError
 
 
 @pytest.fixture(scope="module")
@@ -213,7 +213,7 @@ def test_an_explicit_override_wins_over_the_scale_overlay(params_path):
 
 def test_atomic_outputs_get_the_usual_file_mode(tmp_path):
     import os
-    from tactilepipe.atomic import write_text
+    from tactilepipe.core.atomic import write_text
     write_text(tmp_path / "a.txt", "x")
     umask = os.umask(0)
     os.umask(umask)
@@ -223,7 +223,7 @@ def test_atomic_outputs_get_the_usual_file_mode(tmp_path):
 # --- a stage's declared parameters -------------------------------------------------------------------
 
 def test_a_stage_receives_only_the_keys_it_declares():
-    from tactilepipe.config import declared
+    from tactilepipe.core.config import declared
     resolved = {"scale": "smoke", "mlp": {"max_iter": 60, "grid": {"alpha": [1e-4]}}, "seed": 7}
     p = declared(resolved, ["scale", "mlp.grid"], "cmd_x")
     assert p == {"scale": "smoke", "mlp": {"grid": {"alpha": [1e-4]}}}
@@ -239,13 +239,14 @@ def test_a_stage_receives_only_the_keys_it_declares():
 
 
 def test_declaring_a_key_that_params_yaml_lacks_is_an_error():
-    from tactilepipe.config import declared
+    from tactilepipe.core.config import declared
     with pytest.raises(ConfigError, match="cmd_x: declares parameter 'mlp.epochs', which params.yaml does not have"):
         declared({"mlp": {"max_iter": 60}}, ["mlp.epochs"], "cmd_x")
 
 
 def test_the_cli_hands_a_stage_its_declared_parameters_only(tmp_path):
     args = cli.build_parser().parse_args(["report", "volume", "--in-dir", str(tmp_path)])
-    p = cli._params(args, "scale")
+    from tactilepipe.cli.common import stage_params
+    p = stage_params(args, "scale")
     with pytest.raises(ConfigError, match="reads parameter 'seed'"):
         p["seed"]

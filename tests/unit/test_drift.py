@@ -9,10 +9,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tactilepipe.config import load_params
+from tactilepipe.core.config import load_params
 from tactilepipe.drift import analyse, simulate
-from tactilepipe.errors import InputError
-from tactilepipe.shards import ingest_bag
+from tactilepipe.core.errors import InputError
+from tactilepipe.papillarray.shards import ingest_bag
 
 G = 9.81
 

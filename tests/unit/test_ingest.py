@@ -10,11 +10,11 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from tactilepipe import cli
-from tactilepipe import papillarray as pa
-from tactilepipe.bagio import read_topics, write_bag
-from tactilepipe.errors import InputError
-from tactilepipe.shards import GLOBAL_COLS, ingest_bag
+from tactilepipe.cli import main as cli
+from tactilepipe.papillarray import messages as pa
+from tactilepipe.papillarray.bagio import read_topics, write_bag
+from tactilepipe.core.errors import InputError
+from tactilepipe.papillarray.shards import GLOBAL_COLS, ingest_bag
 
 SENSOR0, SENSOR1 = pa.sensor_topic(0, 0), pa.sensor_topic(0, 1)
 

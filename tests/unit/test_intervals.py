@@ -4,8 +4,8 @@ import math
 
 import pytest
 
-from tactilepipe.errors import TactilepipeError
-from tactilepipe.intervals import interval, paired_difference, ranking, ranking_text
+from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.core.intervals import interval, paired_difference, ranking, ranking_text
 
 T_975_DF2 = 4.30265273   # Student t, 97.5 % quantile, 2 and 4 degrees of freedom (tables)
 T_975_DF4 = 2.77644511

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tactilepipe import papillarray as pa
+from tactilepipe.papillarray import messages as pa
 
 
 def _store():

@@ -8,10 +8,10 @@ import io
 
 import torch
 
-from tactilepipe.config import load_params
-from tactilepipe.tool.model import build_model
-from tactilepipe.tool.predict import stream_predictions
-from tactilepipe.tool.train import CHECKPOINT_FORMAT, TrainConfig
+from tactilepipe.core.config import load_params
+from tactilepipe.tool.model.network import build_model
+from tactilepipe.tool.model.predict import stream_predictions
+from tactilepipe.tool.model.train import CHECKPOINT_FORMAT, TrainConfig
 
 from support.sessions import make_native_session
 

@@ -1,4 +1,4 @@
-"""The GAM channel-gate option and the public checkpoint's key mapping (tool/public_weights.py).
+"""The GAM channel-gate option and the public checkpoint's key mapping (tool/model/public_weights.py).
 
 The public network's key names and shapes are written out here from its description (two
 3-conv encoders, three GAM blocks, a torchvision-named ResNet-101 whose stem takes 512 channels,
@@ -13,10 +13,10 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from tactilepipe.errors import InputError
-from tactilepipe.tool import public_weights as pw
-from tactilepipe.tool.model import build_model
-from tactilepipe.tool.train import load_model
+from tactilepipe.core.errors import InputError
+from tactilepipe.tool.model import public_weights as pw
+from tactilepipe.tool.model.network import build_model
+from tactilepipe.tool.model.train import load_model
 
 # Computed with the model code before the gate option existed (seed 2026, 16 px; the zero-initialised
 # output layer set to a ramp so the output depends on every layer).
@@ -223,9 +223,9 @@ def test_predict_streams_a_public_checkpoint_and_asks_for_its_force_range(tmp_pa
 
     import numpy as np
 
-    from tactilepipe.config import load_params
-    from tactilepipe.tool.predict import stream_predictions
-    from tactilepipe.tool.public_layout import write_public_trial
+    from tactilepipe.core.config import load_params
+    from tactilepipe.tool.model.predict import stream_predictions
+    from tactilepipe.tool.formats.public_layout import write_public_trial
     from support.project import REPO
     rng = np.random.default_rng(0)
     frames = [rng.integers(60, 200, (48, 64, 3), dtype=np.uint8) for _ in range(3)]

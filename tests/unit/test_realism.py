@@ -9,13 +9,13 @@ import cv2
 import numpy as np
 import pytest
 
-from tactilepipe import cli
-from tactilepipe.config import REPO_ROOT, deep_merge, load_params
-from tactilepipe.errors import InputError
-from tactilepipe.tool import realism
-from tactilepipe.tool import simulate as ts
-from tactilepipe.tool.digit_background import SHIPPED, load_background
-from tactilepipe.tool.layout import FRAME_H, FRAME_W, SENSORS
+from tactilepipe.cli import main as cli
+from tactilepipe.core.config import REPO_ROOT, deep_merge, load_params
+from tactilepipe.core.errors import InputError
+from tactilepipe.tool.sim import realism
+from tactilepipe.tool import sim as ts
+from tactilepipe.tool.sim.background import SHIPPED, load_background
+from tactilepipe.tool.formats.native_layout import FRAME_H, FRAME_W, SENSORS
 
 
 @pytest.fixture(scope="module")

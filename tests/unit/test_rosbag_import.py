@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
-from tactilepipe.errors import ArgumentError, InputError
-from tactilepipe.tool import rosbag_import as ri
-from tactilepipe.tool.raw import RawTrial
+from tactilepipe.core.errors import ArgumentError, InputError
+from tactilepipe.tool.formats import rosbag as ri
+from tactilepipe.tool.formats.raw import RawTrial
 
 FORMATS = ri.FORMATS
 T0 = 1_767_225_600_000_000_000

@@ -6,11 +6,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tactilepipe.errors import InputError
-from tactilepipe.tool.serial_log import read_serial_log
-from tactilepipe.tool.splits import make_split, parse_split_name, split_name, thin_training
-from tactilepipe.tool.clock_sync import fit_offset
-from tactilepipe.tool.sync import calibrate, interpolate_at, pair_frames
+from tactilepipe.core.errors import InputError
+from tactilepipe.tool.formats.serial_log import read_serial_log
+from tactilepipe.tool.data.splits import make_split, parse_split_name, split_name, thin_training
+from tactilepipe.tool.data.clock_sync import fit_offset
+from tactilepipe.tool.data.sync import calibrate, interpolate_at, pair_frames
 
 
 def write_log(path, lines, header="# start_host_ns=1000000000", newline_at_end=True):

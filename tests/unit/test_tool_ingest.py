@@ -10,13 +10,13 @@ import cv2
 import numpy as np
 import pytest
 
-from tactilepipe.config import load_params
-from tactilepipe.errors import InputError
-from tactilepipe.tool.dataset import build_tool_dataset
-from tactilepipe.tool.ingest import ingest_trial, read_shard_info
-from tactilepipe.tool.layout import FRAME_H, FRAME_W, TrialMeta, write_calibration
-from tactilepipe.tool.loader import ToolFrames
-from tactilepipe.tool.native_import import read_native_trial
+from tactilepipe.core.config import load_params
+from tactilepipe.core.errors import InputError
+from tactilepipe.tool.data.dataset import build_tool_dataset
+from tactilepipe.tool.data.ingest import ingest_trial, read_shard_info
+from tactilepipe.tool.formats.native_layout import FRAME_H, FRAME_W, TrialMeta, write_calibration
+from tactilepipe.tool.data.loader import ToolFrames
+from tactilepipe.tool.formats.native_import import read_native_trial
 
 CAL = np.diag([8.0, 8.0, 20.0, 100.0, 100.0, 100.0])   # N/V: 5/1023 V per count -> ~0.1 N per Fz count
 START_NS = 1_700_000_000_000_000_000

@@ -12,10 +12,10 @@ import pandas as pd
 import pytest
 import torch
 
-from tactilepipe.errors import ArgumentError, TactilepipeError
-from tactilepipe.tool.loader import ToolFrames
-from tactilepipe.tool.model import DEPTHS, MIN_IMAGE_SIZE, VARIANTS, TrimmedConv2d, build_model, count_parameters
-from tactilepipe.tool.train import latency_ms, load_model, predict, scheduled_lr, train
+from tactilepipe.core.errors import ArgumentError, TactilepipeError
+from tactilepipe.tool.data.loader import ToolFrames
+from tactilepipe.tool.model.network import DEPTHS, MIN_IMAGE_SIZE, VARIANTS, TrimmedConv2d, build_model, count_parameters
+from tactilepipe.tool.model.train import latency_ms, load_model, predict, scheduled_lr, train
 
 from support.tool_data import S, make_dataset, make_split_dict, quick_cfg
 
@@ -369,7 +369,7 @@ def test_zscore_normalisation_and_bad_settings(tiny, tmp_path):
 
 
 def test_over_time_figure_shows_the_strongest_trial_of_each_tool(tmp_path):
-    from tactilepipe.tool.figures_models import over_time, strongest_trial_per_tool
+    from tactilepipe.tool.report.figures_models import over_time, strongest_trial_per_tool
     rows = []
     for tool, trial, peak in [("spatula", "s/a", 5.0), ("spatula", "s/b", 9.0), ("knife", "k/a", 3.0),
                               ("knife", "k/b", 2.0)]:
@@ -383,7 +383,7 @@ def test_over_time_figure_shows_the_strongest_trial_of_each_tool(tmp_path):
 
 
 def test_a_verdict_needs_both_improvements_separated_from_zero_over_the_draws():
-    from tactilepipe.tool.verdicts import versus
+    from tactilepipe.tool.report.verdicts import versus
     base = {"mae": [1.5, 1.6, 1.7], "r2": [0.80, 0.85, 0.83]}
     good = {"mae": [1.0, 1.2, 1.1], "r2": [0.90, 0.92, 0.91]}
     v = versus(good, base, test_train_ratio=0.0)
@@ -405,7 +405,7 @@ def test_a_verdict_needs_both_improvements_separated_from_zero_over_the_draws():
 
 
 def test_the_studys_orderings_are_judged_holds_reversed_or_undecided():
-    from tactilepipe.tool.verdicts import paper_orderings
+    from tactilepipe.tool.report.verdicts import paper_orderings
     scores = {"full": {"mae": [0.5, 0.6, 0.7]}, "no_gam": {"mae": [0.6, 1.6, 0.8]},
               "no_ref": {"mae": [1.5, 1.6, 1.7]}, "single": {"mae": [1.0, 1.1, 1.2]}}
     got = {(r["better"], r["worse"]): r for r in paper_orderings("tool_normal", scores, 0.0)}
@@ -420,7 +420,7 @@ def test_the_studys_orderings_are_judged_holds_reversed_or_undecided():
 
 
 def test_the_like_for_like_baselines_see_what_their_variant_sees():
-    from tactilepipe.tool.evaluate import (LIKE_FOR_LIKE, baselines, rest_frame_rmse_features,
+    from tactilepipe.tool.model.evaluate import (LIKE_FOR_LIKE, baselines, rest_frame_rmse_features,
                                            tactile_rmse_features)
     rng = np.random.default_rng(0)
     references = rng.integers(0, 255, (4, 2, 3, 3)).astype(np.uint8)         # 4 trials, 2 fingers

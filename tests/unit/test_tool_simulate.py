@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 import yaml
 
-from tactilepipe.config import REPO_ROOT, deep_merge, load_params
-from tactilepipe.errors import ConfigError, InputError
-from tactilepipe.tool import digit_render as dr
-from tactilepipe.tool import layout
-from tactilepipe.tool import public_layout as pl
-from tactilepipe.tool import simulate as ts
+from tactilepipe.core.config import REPO_ROOT, deep_merge, load_params
+from tactilepipe.core.errors import ConfigError, InputError
+from tactilepipe.tool.sim import render as dr
+from tactilepipe.tool.formats import native_layout as layout
+from tactilepipe.tool.formats import public_layout as pl
+from tactilepipe.tool import sim as ts
 
 SEED = 2026
 LSB_V = layout.ADC_VOLTS / layout.ADC_COUNTS

@@ -10,11 +10,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tactilepipe import papillarray as pa
-from tactilepipe.bagio import write_bag
-from tactilepipe.errors import InputError
-from tactilepipe.metrics import mae, r2_score, rmse
-from tactilepipe.shards import ingest_bag
+from tactilepipe.papillarray import physics
+from tactilepipe.papillarray import messages as pa
+from tactilepipe.papillarray.bagio import write_bag
+from tactilepipe.core.errors import InputError
+from tactilepipe.core.metrics import mae, r2_score, rmse
+from tactilepipe.papillarray.shards import ingest_bag
 from tactilepipe.volume import baseline, simulate as vsim
 from tactilepipe.volume.dataset import _longest_run, build_dataset, off_table_segment, read_shard
 from tactilepipe.volume.folds import make_folds
@@ -39,7 +40,7 @@ def _pose_tolerance(rec: dict, sim: dict, seg: dict) -> int:
     interpolated onto the sensor clock) and one sample of rounding."""
     lift_s = rec["phases"]["lift"][1] - rec["phases"]["lift"][0]
     t = np.linspace(0, lift_s, 100001)
-    z, _ = vsim.minimum_jerk(t, lift_s, sim["lift_height_m"])
+    z, _ = physics.minimum_jerk(t, lift_s, sim["lift_height_m"])
     t_thr = t[np.argmax(z * 1000.0 > seg["pose_lift_threshold_mm"])]
     rate = sim["rate_hz"]
     return math.ceil(t_thr * rate) + math.ceil(rate / sim["pose_rate_hz"]) + 1

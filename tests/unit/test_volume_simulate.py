@@ -6,11 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tactilepipe.papillarray import physics
 from tactilepipe.volume.labels import read_session_labels
-from tactilepipe.errors import InputError
+from tactilepipe.core.errors import InputError
 from tactilepipe.volume import simulate as vsim
 
-G = vsim.G
+G = physics.G
 
 
 def _hold(rec: dict) -> np.ndarray:
@@ -22,8 +23,8 @@ def _acc(rec: dict, sim: dict) -> np.ndarray:
     """The tool's vertical acceleration, rebuilt from the phase table (lift and place moves)."""
     t, ph = rec["t"], rec["phases"]
     lift_s = ph["lift"][1] - ph["lift"][0]
-    _, a_up = vsim.minimum_jerk(t - ph["lift"][0], lift_s, sim["lift_height_m"])
-    _, a_dn = vsim.minimum_jerk(t - ph["place"][0], lift_s, sim["lift_height_m"])
+    _, a_up = physics.minimum_jerk(t - ph["lift"][0], lift_s, sim["lift_height_m"])
+    _, a_dn = physics.minimum_jerk(t - ph["place"][0], lift_s, sim["lift_height_m"])
     return a_up - a_dn
 
 
@@ -173,9 +174,9 @@ def test_low_friction_makes_the_pad_slide(quiet_sim):
 def test_normal_load_map_sums_to_the_grip(vsim_params):
     rng = np.random.default_rng(0)
     grip = np.concatenate([[0.0, 1e-4, 0.3], rng.uniform(0, 20, 50)])
-    offsets = vsim.pillar_offsets_mm(vsim_params["pillar_height_steps_mm"])
+    offsets = physics.pillar_offsets_mm(vsim_params["pillar_height_steps_mm"])
     for tilt in ([0.0, 0.0], [0.02, -0.01], [-0.05, 0.04]):
-        fz = vsim.normal_load_map(grip, offsets, np.array(tilt), vsim_params["pillar_pitch_mm"],
+        fz = physics.normal_load_map(grip, offsets, np.array(tilt), vsim_params["pillar_pitch_mm"],
                                   vsim_params["pillar_normal_stiffness_n_per_mm"])
         assert fz.shape == (len(grip), 9)
         assert (fz >= 0).all()
@@ -187,8 +188,8 @@ def test_normal_load_map_sums_to_the_grip(vsim_params):
 
 
 def test_normal_load_map_untilted_is_symmetric(vsim_params):
-    offsets = vsim.pillar_offsets_mm(vsim_params["pillar_height_steps_mm"])
-    fz = vsim.normal_load_map(np.array([6.0]), offsets, np.zeros(2), 3.5, 4.0)[0]
+    offsets = physics.pillar_offsets_mm(vsim_params["pillar_height_steps_mm"])
+    fz = physics.normal_load_map(np.array([6.0]), offsets, np.zeros(2), 3.5, 4.0)[0]
     edges, corners = fz[[1, 3, 5, 7]], fz[[0, 2, 6, 8]]
     np.testing.assert_allclose(edges, edges[0])
     np.testing.assert_allclose(corners, corners[0])
@@ -199,8 +200,8 @@ def test_normal_load_map_untilted_is_symmetric(vsim_params):
 
 @pytest.fixture
 def pad_fz(vsim_params) -> np.ndarray:
-    offsets = vsim.pillar_offsets_mm(vsim_params["pillar_height_steps_mm"])
-    return vsim.normal_load_map(np.array([6.0]), offsets, np.array([0.012, -0.007]),
+    offsets = physics.pillar_offsets_mm(vsim_params["pillar_height_steps_mm"])
+    return physics.normal_load_map(np.array([6.0]), offsets, np.array([0.012, -0.007]),
                                 vsim_params["pillar_pitch_mm"], vsim_params["pillar_normal_stiffness_n_per_mm"])[0]
 
 
@@ -261,7 +262,7 @@ def test_no_grip_no_shear():
 def test_minimum_jerk_starts_and_ends_at_rest_and_reaches_the_height():
     duration, height = 1.5, 0.1
     t = np.linspace(-0.5, 2.0, 25001)
-    z, acc = vsim.minimum_jerk(t, duration, height)
+    z, acc = physics.minimum_jerk(t, duration, height)
     dt = t[1] - t[0]
     vel = np.gradient(z, dt)
     start, end = np.argmin(np.abs(t)), np.argmin(np.abs(t - duration))

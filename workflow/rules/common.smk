@@ -6,18 +6,18 @@ from pathlib import Path
 
 import yaml
 
-from tactilepipe import codedeps
-from tactilepipe.atomic import write_text
-from tactilepipe.config import declared, deep_merge, resolve
-from tactilepipe.errors import TactilepipeError
+from tactilepipe.pipeline import codedeps
+from tactilepipe.core.atomic import write_text
+from tactilepipe.core.config import declared, deep_merge, resolve
+from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.volume.labels import read_session_labels
 from tactilepipe.volume.simulate import session_plan
 from tactilepipe.drift.simulate import session_plan as drift_plan
-from tactilepipe.tool.importers import TRIALS_CSV, list_trials as list_tool_trials, public_trial_meta, read_trials_csv
-from tactilepipe.tool.simulate import session_plan as tool_plan
-from tactilepipe.tool import runs as run_names
-from tactilepipe.tool.splits import split_name
-from tactilepipe.tool.digit_background import background_path
+from tactilepipe.tool.formats.trials import TRIALS_CSV, list_trials as list_tool_trials, public_trial_meta, read_trials_csv
+from tactilepipe.tool.sim import session_plan as tool_plan
+from tactilepipe.pipeline import runs as run_names
+from tactilepipe.tool.data.splits import split_name
+from tactilepipe.tool.sim.background import background_path
 
 # `config` is params.yaml plus any --config overrides; validate and resolve the scale up front
 # so a wrong key or type stops the run before any job starts.
@@ -93,7 +93,7 @@ def _print_estimate_after_dry_run():
     jobs = [(job.rule.name, dict(job.wildcards), dict(job.resources), job.threads)
             for job in dag.needrun_jobs(exclude_finished=False) if not job.is_norun]
     if jobs:
-        from tactilepipe.estimate import estimate_report
+        from tactilepipe.pipeline.estimate import estimate_report
         print(estimate_report(P, jobs, run_spec=globals().get("run_spec")), flush=True)
 
 
@@ -241,7 +241,7 @@ def _tool_trial_meta(session, name):
     if fmt == "public":
         meta = public_trial_meta(read_trials_csv(f"raw/tool/{session}"), Path(path))
         return ("normal" if "data_normal" in path else "shear"), meta["tool"]
-    from tactilepipe.tool.rosbag_import import read_sidecar_meta
+    from tactilepipe.tool.formats.rosbag import read_sidecar_meta
     meta = read_sidecar_meta(path)
     return meta["kind"], meta["tool"]
 

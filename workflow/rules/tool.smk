@@ -3,7 +3,7 @@
 # (sync, references, decoded arrays) -> splits, QC report and data figures.
 
 TOOL_TARGETS = {"tool_normal": ("normal", "normal"), "tool_shear": ("shear", "shear")}
-SPLIT_NAME = "(frame|public_frame|trial|lopo)(_r[1-9][0-9]*)?|loto_[A-Za-z0-9_-]+"   # tool/splits.py; public_frame: study000.smk
+SPLIT_NAME = "(frame|public_frame|trial|lopo)(_r[1-9][0-9]*)?|loto_[A-Za-z0-9_-]+"   # tool/data/splits.py; public_frame: study000.smk
 
 
 rule simulate_tool:
@@ -131,7 +131,7 @@ rule tool_data:
 
 
 # --- models ------------------------------------------------------------------------------------
-# Runs (tool/runs.py): each variant on every repeat of the default split, the full model leaving
+# Runs (pipeline/runs.py): each variant on every repeat of the default split, the full model leaving
 # out each tool in turn, and the sweep (other depth / input size, for error against run time).
 
 

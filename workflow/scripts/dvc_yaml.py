@@ -27,8 +27,8 @@ from pathlib import Path
 
 import yaml
 
-from tactilepipe import codedeps
-from tactilepipe.atomic import write_text
+from tactilepipe.pipeline import codedeps
+from tactilepipe.core.atomic import write_text
 
 STAGES = [  # (name, Snakemake targets); "{scale}" is written as DVC's ${scale}
     ("simulate_volume", ["raw/volume/sim-{scale}/lifts.csv"]),

@@ -16,7 +16,7 @@ import json
 import re
 from pathlib import Path
 
-from tactilepipe.errors import InputError
+from tactilepipe.core.errors import InputError
 
 RUNS = ("unloaded", "loaded")
 RECORDING_SUFFIXES = (".bag", ".parquet")

@@ -23,10 +23,10 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import minimize_scalar
 
-from tactilepipe.atomic import write_json, write_text
+from tactilepipe.core.atomic import write_json, write_text
 from tactilepipe.drift import RUNS, parse_recording_name
-from tactilepipe.errors import InputError
-from tactilepipe.metrics import r2_score
+from tactilepipe.core.errors import InputError
+from tactilepipe.core.metrics import r2_score
 
 G = 9.81
 EXP_MODEL = "exp_saturating"

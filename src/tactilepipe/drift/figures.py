@@ -11,8 +11,8 @@ matplotlib.use("Agg")  # files only, no display; must precede the pyplot import
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from tactilepipe import plotting  # noqa: E402  (the project's shared figure style)
-from tactilepipe.atomic import save_figure  # noqa: E402
+from tactilepipe.core import plotting  # noqa: E402  (the project's shared figure style)
+from tactilepipe.core.atomic import save_figure  # noqa: E402
 
 RUN_STYLE = {"unloaded": {"color": "#1f77b4", "marker": "o", "label": "unloaded: reading, mean ± SD"},
              "loaded": {"color": "#d62728", "marker": "s", "label": "loaded: error on the weight, mean ± SD"}}

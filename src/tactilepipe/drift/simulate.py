@@ -12,7 +12,7 @@ same numbers read from ``params["simulate_volume"]``, so both scenes describe on
 - residual bias left by the bias request (per pillar and axis, drawn once per run: one bias);
 - white pillar noise (noise_std_n per pillar and axis);
 - viscoelastic creep of the pillars under the weight and the pillars' measuring range
-  (`tactilepipe.volume.viscoelastic`, `tactilepipe.volume.simulate.saturate`);
+  (`tactilepipe.papillarray.viscoelastic`, `tactilepipe.papillarray.physics.saturate`);
 - a tiny slow ambient wobble (room air-conditioning cycle), AMBIENT_WOBBLE_N.
 
 What "load" means when the weight is only on during recordings: the exponential factor is the
@@ -33,13 +33,13 @@ from pathlib import Path
 
 import numpy as np
 
-from tactilepipe import papillarray as pa
-from tactilepipe.bagio import write_bag
+from tactilepipe.papillarray import messages as pa
+from tactilepipe.papillarray.bagio import write_bag
 from tactilepipe.drift import RUNS, parse_recording_name, recording_name
-from tactilepipe.errors import ConfigError
-from tactilepipe.volume import viscoelastic
-from tactilepipe.volume.simulate import (G, SESSION_EPOCH_S, minimum_jerk, normal_load_map,
-                                         pillar_offsets_mm, saturate)
+from tactilepipe.core.errors import ConfigError
+from tactilepipe.papillarray import viscoelastic
+from tactilepipe.papillarray.physics import (G, SESSION_EPOCH_S, minimum_jerk, normal_load_map,
+                                            pillar_offsets_mm, saturate)
 
 TOPIC = pa.sensor_topic(0, 0)
 FRAME_ID = "hub_0/sensor_0"
@@ -154,6 +154,6 @@ def write_drift_bag(path: str | Path, name: str, params: dict) -> dict:
 
 def write_session_meta(out_dir: str | Path, params: dict) -> None:
     """The session's ``session.json``: what the rig knows about it (the weight it put on)."""
-    from tactilepipe.atomic import write_json
+    from tactilepipe.core.atomic import write_json
     from tactilepipe.drift import SESSION_META
     write_json(Path(out_dir) / SESSION_META, {"reference_load_g": params["simulate_drift"]["load_g"]})

@@ -13,7 +13,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from tactilepipe.metrics import r2_detail, r2_score
+from tactilepipe.core.metrics import r2_detail, r2_score
 
 
 def estimate_volume(fy, fz, mu: float, gravity: float, container_mass_g: float) -> np.ndarray:

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
-from tactilepipe.errors import InputError
+from tactilepipe.core.errors import InputError
 
 FORCE_COLS = ["gfx", "gfy", "gfz"]
 

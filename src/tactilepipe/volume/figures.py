@@ -9,9 +9,9 @@ import pandas as pd
 from matplotlib.colors import LinearSegmentedColormap, Normalize
 from matplotlib.patches import Circle
 
-from tactilepipe.atomic import save_figure
-from tactilepipe.papillarray import PILLAR_ROWCOL
-from tactilepipe.plotting import close, figure
+from tactilepipe.core.atomic import save_figure
+from tactilepipe.papillarray.messages import PILLAR_ROWCOL
+from tactilepipe.core.plotting import close, figure
 
 LABELS = {"fx_fy_fz": "{Fx,Fy,Fz}", "fy_fz": "{Fy,Fz}", "fy": "Fy", "fz": "Fz", "baseline": "est_vol\n(baseline)"}
 

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from tactilepipe.atomic import save_figure
-from tactilepipe.plotting import close, figure
+from tactilepipe.core.atomic import save_figure
+from tactilepipe.core.plotting import close, figure
 from tactilepipe.volume.figures import label
 
 MODALITY_COLORS = {"fz": "#C44E52", "fy": "#4C72B0", "fy_fz": "#8172B2", "fx_fy_fz": "#55A868",

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from tactilepipe.errors import InputError
+from tactilepipe.core.errors import InputError
 
 
 def make_folds(lifts: pd.DataFrame, n_folds: int, n_train: int, n_test: int, seed: int,

@@ -13,8 +13,8 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 
-from tactilepipe.csvtext import read_text_table
-from tactilepipe.errors import InputError
+from tactilepipe.core.csvtext import read_text_table
+from tactilepipe.core.errors import InputError
 
 HEADER = ("bag", "volume_ml", "set")
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from tactilepipe.errors import ArgumentError, TactilepipeError
+from tactilepipe.core.errors import ArgumentError, TactilepipeError
 
 _ROUND_OFF = 16 * np.finfo(np.float64).eps     # relative spread below which a column is constant
 

@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from tactilepipe.atomic import write_json, write_text
-from tactilepipe.errors import ConfigError
-from tactilepipe.shards import ingest_bag
+from tactilepipe.core.atomic import write_json, write_text
+from tactilepipe.core.errors import ConfigError
+from tactilepipe.papillarray.shards import ingest_bag
 from tactilepipe.volume import simulate
 from tactilepipe.volume.baseline import sweep
 from tactilepipe.volume.dataset import build_dataset, off_table_segment, read_shard, session_lifts

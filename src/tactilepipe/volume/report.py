@@ -9,10 +9,10 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
-from tactilepipe.atomic import write_json
-from tactilepipe.intervals import interval, paired_difference, ranking, ranking_text
-from tactilepipe.metrics import R2_CONSTANT, format_metric
-from tactilepipe.tables import write_table
+from tactilepipe.core.atomic import write_json
+from tactilepipe.core.intervals import interval, paired_difference, ranking, ranking_text
+from tactilepipe.core.metrics import R2_CONSTANT, format_metric
+from tactilepipe.core.tables import write_table
 from tactilepipe.volume import figures
 
 

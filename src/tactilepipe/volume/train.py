@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from tactilepipe.metrics import r2_score
+from tactilepipe.core.metrics import r2_score
 from tactilepipe.volume.mlp import MLPConfig, MLPRegressor
 
 

@@ -1,0 +1,186 @@
+"""Load params.yaml, apply the chosen scale's overlay, validate against the JSON schema.
+
+Snakemake (workflow/rules/common.smk) and the CLI both go through `load_params`, so a stage
+sees the same numbers whichever way it is started.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+import jsonschema
+import yaml
+
+from tactilepipe.core.errors import ConfigError
+
+REPO_ROOT = Path(__file__).resolve().parents[3]
+SCHEMA_PATH = REPO_ROOT / "workflow" / "schemas" / "params.schema.json"
+DEFAULT_PARAMS = Path("params.yaml")
+
+
+def _schema() -> dict:
+    return json.loads(SCHEMA_PATH.read_text())
+
+
+def deep_merge(base: dict, overlay: dict) -> dict:
+    """Return ``base`` with ``overlay`` merged in (dicts merge recursively, the rest replaces)."""
+    out = copy.deepcopy(base)
+    for key, value in overlay.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = deep_merge(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+def _format_error(err: jsonschema.ValidationError, source: str) -> str:
+    where = ".".join(str(p) for p in err.absolute_path) or "(top level)"
+    return f"{source}: invalid parameter at '{where}': {err.message}"
+
+
+# YAML 1.1 (PyYAML, and Snakemake's config loading) reads 1e-4 as a string: its floats need a dot
+# (1.0e-4). YAML 1.2 and every other reader take it as a number, so where the schema asks for a
+# number, a string of this form is one.
+_YAML12_FLOAT = re.compile(r"^[-+]?(\.[0-9]+|[0-9]+(\.[0-9]*)?)([eE][-+]?[0-9]+)?$")
+
+
+def _numbers_yaml11_missed(raw: dict) -> dict:
+    """``raw`` with number-looking strings turned into numbers where the schema expects one."""
+    raw = copy.deepcopy(raw)
+    validator = jsonschema.Draft202012Validator(_schema())
+    for err in validator.iter_errors(raw):
+        expected = err.validator_value if err.validator == "type" else None
+        expected = [expected] if isinstance(expected, str) else expected or []
+        if "number" not in expected or not isinstance(err.instance, str) or not _YAML12_FLOAT.match(err.instance):
+            continue
+        *parents, key = err.absolute_path
+        node = raw
+        for k in parents:
+            node = node[k]
+        node[key] = float(err.instance)
+    return raw
+
+
+def validate(raw: dict, source: str = "params.yaml") -> None:
+    """Raise ConfigError naming the first offending key (wrong key, type or range)."""
+    validator = jsonschema.Draft202012Validator(_schema())
+    errors = sorted(validator.iter_errors(raw), key=lambda e: (len(e.absolute_path), str(e.absolute_path)))
+    if errors:
+        raise ConfigError(_format_error(errors[0], source))
+
+
+def resolve(raw: dict, source: str = "params.yaml", overrides: dict | None = None) -> dict[str, Any]:
+    """Validate ``raw`` (params.yaml plus overrides) and return it with its scale applied.
+
+    Keys given in ``overrides`` are applied again after the scale's overlay, so a value asked for
+    explicitly wins over the scale's.
+    """
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{source}: expected a mapping of parameter groups, got {type(raw).__name__}")
+    raw = _numbers_yaml11_missed(raw)
+    overrides = _numbers_yaml11_missed(overrides) if overrides else overrides
+    validate(raw, source)
+    scale = raw["scale"]
+    if scale not in raw["scales"]:
+        raise ConfigError(f"{source}: unknown scale '{scale}' (choose one of {sorted(raw['scales'])})")
+    resolved = deep_merge({k: v for k, v in raw.items() if k != "scales"}, raw["scales"][scale])
+    resolved = deep_merge(resolved, {k: v for k, v in (overrides or {}).items() if k != "scales"})
+    validate({**resolved, "scales": raw["scales"]}, f"{source} (scale '{scale}')")
+    for key in ("volume_sessions", "tool_sessions"):
+        resolved[key] = [s.replace("{scale}", scale) for s in resolved[key]]
+    resolved["drift_session"] = resolved["drift_session"].replace("{scale}", scale)
+    _check_consistency(resolved, source)
+    return resolved
+
+
+def _check_consistency(p: dict, source: str) -> None:
+    folds, sim = p["folds"], p["simulate_volume"]
+    need = folds["train_lifts_per_volume"] + folds["test_lifts_per_volume"]
+    if any(s.startswith("sim-") for s in p["volume_sessions"]) and sim["lifts_per_volume"] < need:
+        raise ConfigError(
+            f"{source}: simulate_volume.lifts_per_volume={sim['lifts_per_volume']} is fewer than the "
+            f"{need} lifts per volume the folds need (train {folds['train_lifts_per_volume']} + "
+            f"test {folds['test_lifts_per_volume']})")
+    if p["baseline"]["mu_min"] >= p["baseline"]["mu_max"]:
+        raise ConfigError(f"{source}: baseline.mu_min must be below baseline.mu_max")
+    if p["mlp"]["grid"]["modality"] not in p["mlp"]["modalities"]:
+        raise ConfigError(f"{source}: mlp.grid.modality '{p['mlp']['grid']['modality']}' is not one of "
+                          f"mlp.modalities {sorted(p['mlp']['modalities'])}")
+    for sensor, axes in p["papillarray_axes"].items():
+        if sorted(v[1] for v in axes.values()) != ["x", "y", "z"]:
+            raise ConfigError(f"{source}: papillarray_axes.{sensor} must take each recorded axis x, y, z once "
+                              f"(got {axes})")
+    if abs(sum(p["tool_split"]["fractions"]) - 1.0) > 1e-6:
+        raise ConfigError(f"{source}: tool_split.fractions must sum to 1 (got {p['tool_split']['fractions']})")
+    if p["simulate_volume"]["friction_kinetic"] > p["simulate_volume"]["friction_static"]:
+        raise ConfigError(f"{source}: simulate_volume.friction_kinetic must not exceed friction_static")
+    pos = sim["position"]
+    fullest = max(sim["volumes_ml"] + sim["unseen_volumes_ml"])
+    if pos["container_capped"] and pos["container_capacity_ml"] <= fullest:
+        raise ConfigError(f"{source}: simulate_volume.position.container_capacity_ml={pos['container_capacity_ml']:g} "
+                          f"leaves no headspace above the fullest volume ({fullest:g} ml)")
+
+
+def load_params(path: str | Path = DEFAULT_PARAMS, overrides: dict | None = None) -> dict[str, Any]:
+    """Read params.yaml, apply ``overrides`` (e.g. {"scale": "smoke"}), validate and resolve."""
+    path = Path(path)
+    try:
+        raw = yaml.safe_load(path.read_text())
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: parameter file not found") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset {exc.start})") from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ConfigError(f"{path}: not valid YAML{where}: {problem}") from None
+    if overrides:
+        raw = deep_merge(raw or {}, overrides)
+    return resolve(raw, str(path), overrides)
+
+
+class DeclaredParams(dict):
+    """A stage's parameters: only the keys it declared. Reading another key is an error naming
+    the stage and the key, so a stage cannot depend on a parameter the workflow does not track."""
+
+    where: str = "stage"
+
+    def __missing__(self, key):
+        raise ConfigError(f"{self.where}: reads parameter '{key}', which the stage does not declare "
+                          f"(add it to the stage's _params keys in tactilepipe.cli)")
+
+    def get(self, key, default=None):
+        """As ``self[key]``: an undeclared key is an error, never a silent second default."""
+        return self[key]
+
+
+def declared(resolved: dict, keys, where: str) -> DeclaredParams:
+    """``resolved`` cut down to the dotted ``keys`` ("tool_train.lr" keeps tool_train: {lr: ...})."""
+    def wrap(value, path):
+        if isinstance(value, dict) and not isinstance(value, DeclaredParams):
+            out = DeclaredParams({k: wrap(v, f"{path}.{k}") for k, v in value.items()})
+            out.where = where
+            return out
+        return copy.deepcopy(value)
+
+    out = DeclaredParams()
+    out.where = where
+    for key in keys:
+        node, parts = resolved, key.split(".")
+        for i, part in enumerate(parts):
+            if not isinstance(node, dict) or part not in node:
+                raise ConfigError(f"{where}: declares parameter '{key}', which params.yaml does not have")
+            node = node[part]
+        target = out
+        for part in parts[:-1]:
+            if part not in target:
+                target[part] = DeclaredParams()
+                target[part].where = where
+            target = dict.__getitem__(target, part)
+        target[parts[-1]] = wrap(node, key)
+    return out

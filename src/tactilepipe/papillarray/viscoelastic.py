@@ -1,0 +1,328 @@
+"""Viscoelastic creep of the PapillArray's silicone pillars: the dynamics the lift and drift
+simulators integrate over time (everything else in them is quasi-static, solved per sample).
+
+Physics. A silicone pillar is a generalised Maxwell solid (Prony series): its relaxed spring
+k_inf in parallel with Maxwell arms (k_i in series with a dashpot, relaxation time tau_i). The
+parameters give g_i = k_i / k_0, the fraction of the instantaneous stiffness k_0 that relaxes with
+tau_i (``creep_fractions``, ``creep_tau_s``); g_inf = 1 - sum(g_i) = k_inf / k_0. The pillar is
+load-driven (the gripper is force-controlled, the weight is carried by friction): a force f(t)
+deflects it by x(t), and the sensor reports k_inf x - its static calibration, exact once the
+pillar has settled. With s_i = k_inf y_i (y_i the dashpot positions, in force units) the reading
+r and the arm states obey, for every pillar and axis alike,
+
+    r = g_inf f + sum_j g_j s_j,        ds_i/dt = (r - s_i) / tau_i,
+i.e. ds/dt = A s + b f with A_ij = (g_j - delta_ij) / tau_i and b_i = g_inf / tau_i.
+
+A step of force reads g_inf of its size at once and creeps to the full value (retardation times
+of order tau_i / g_inf): the reading lags load changes, and a fast silicone mode (tau well below
+the sample period) makes the system stiff. The force is known at the samples; between two
+samples it is taken linear in time (first-order hold).
+
+Integrators (``creep_integrator``, step h = sample period / ``creep_substeps``):
+- ``exponential``: exact for a load linear between samples (matrix exponential of the augmented
+  system); unconditionally stable; the default.
+- ``implicit_euler``: backward Euler, unconditionally stable (L-stable), first order.
+- ``rk4``: classical Runge-Kutta, fourth order, stable only for h |lambda| below about 2.785.
+- ``euler``: forward Euler, first order, stable only for h |lambda| < 2.
+The explicit methods are refused (ConfigError) when h is beyond their stability limit, unless the
+caller asks otherwise (the integrator benchmark runs them there on purpose).
+
+The Prony numbers of the real pillars are not published; the defaults in params.yaml are typical
+of a soft platinum-cure silicone and are parameters to replace by a measured creep curve.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm
+from scipy.signal import lfilter
+
+from tactilepipe.core.errors import ConfigError
+
+METHODS = ("exponential", "implicit_euler", "rk4", "euler")
+RK4_LIMIT = 2.785293563405282      # real-axis stability limit of classical RK4
+
+
+@dataclass(frozen=True)
+class Prony:
+    fractions: tuple[float, ...]   # g_i
+    taus_s: tuple[float, ...]      # tau_i
+
+    @classmethod
+    def from_params(cls, sim: dict) -> "Prony":
+        g = tuple(float(v) for v in sim.get("creep_fractions", []))
+        tau = tuple(float(v) for v in sim.get("creep_tau_s", []))
+        if len(g) != len(tau):
+            raise ConfigError(f"simulate_volume: creep_fractions ({len(g)} values) and creep_tau_s "
+                              f"({len(tau)} values) must have the same length")
+        if any(v < 0 for v in g) or sum(g) >= 1.0:
+            raise ConfigError(f"simulate_volume: creep_fractions {list(g)} must be >= 0 and sum to "
+                              "less than 1 (the relaxed stiffness k_inf must stay positive)")
+        if any(not np.isfinite(v) or v <= 0 for v in tau):
+            raise ConfigError(f"simulate_volume: creep_tau_s {list(tau)} must be finite and > 0")
+        return cls(g, tau)
+
+    @property
+    def g_inf(self) -> float:
+        return 1.0 - sum(self.fractions)
+
+    @property
+    def active(self) -> bool:
+        return any(g > 0 for g in self.fractions)
+
+    def system(self) -> tuple[np.ndarray, np.ndarray]:
+        """A (m, m) and b (m,) of ds/dt = A s + b f."""
+        g = np.asarray(self.fractions, float)
+        inv_tau = 1.0 / np.asarray(self.taus_s, float)
+        a = inv_tau[:, None] * (g[None, :] - np.eye(len(g)))
+        return a, self.g_inf * inv_tau
+
+    def eigenvalues(self) -> np.ndarray:
+        return np.linalg.eigvals(self.system()[0]) if self.fractions else np.zeros(0)
+
+
+def stability_limit_s(prony: Prony, method: str) -> float:
+    """Largest stable step (s) of ``method`` for this material (inf for the implicit ones).
+
+    The eigenvalues of A are real and negative: A v = lam v is the symmetric-definite pencil
+    (g g^T - diag(g)) v = lam diag(g tau) v, and g g^T - diag(g) is negative definite when
+    sum(g) < 1 (Cauchy-Schwarz). So the real-axis limits of the explicit methods apply."""
+    if method not in METHODS:
+        raise ConfigError(f"simulate_volume.creep_integrator '{method}' must be one of {list(METHODS)}")
+    lam = np.abs(np.real(prony.eigenvalues()))
+    if method in ("exponential", "implicit_euler") or len(lam) == 0:
+        return float("inf")
+    return float((2.0 if method == "euler" else RK4_LIMIT) / lam.max())
+
+
+def step_matrices(prony: Prony, h: float, method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(Phi, G0, G1) with s_next = Phi s + G0 f_start + G1 f_end for one step of length h, the load
+    linear over the step. Every method here is linear in (s, f), so one step is this affine map;
+    ``integrate`` applies it step by step."""
+    a, b = prony.system()
+    m = len(b)
+    eye = np.eye(m)
+    if method == "exponential":
+        aug = np.zeros((m + 2, m + 2))
+        aug[:m, :m], aug[:m, m], aug[m, m + 1] = a, b, 1.0 / h
+        e = expm(aug * h)                   # u' = (f_end - f_start) / h over the step
+        phi, g_u, g_v = e[:m, :m], e[:m, m], e[:m, m + 1]
+        return phi, g_u - g_v, g_v
+    if method == "implicit_euler":
+        inv = np.linalg.inv(eye - h * a)
+        return inv, np.zeros(m), h * inv @ b
+    if method == "euler":
+        return eye + h * a, h * b, np.zeros(m)
+    if method == "rk4":
+        # stages with the load at t, t + h/2 (mean of the ends) and t + h
+        ha = h * a
+        phi = eye + ha + ha @ ha / 2 + ha @ ha @ ha / 6 + ha @ ha @ ha @ ha / 24
+        k1_0 = b                                                     # f-terms of each stage: (start, end)
+        k2 = (b / 2 + ha @ k1_0 / 2, b / 2)
+        k3 = (b / 2 + ha @ k2[0] / 2, b / 2 + ha @ k2[1] / 2)
+        k4 = (ha @ k3[0], b + ha @ k3[1])
+        g0 = h / 6 * (k1_0 + 2 * k2[0] + 2 * k3[0] + k4[0])
+        g1 = h / 6 * (2 * k2[1] + 2 * k3[1] + k4[1])
+        return phi, g0, g1
+    raise ConfigError(f"simulate_volume.creep_integrator '{method}' must be one of {list(METHODS)}")
+
+
+def _explicit_step(prony, h, method, s, f0, f1):
+    """One literal step of an explicit method (what the benchmark times), s (C, m), f (C,)."""
+    a, b = prony.system()
+
+    def rhs(state, f):
+        return state @ a.T + f[:, None] * b[None, :]
+    if method == "euler":
+        return s + h * rhs(s, f0)
+    fm = 0.5 * (f0 + f1)
+    k1 = rhs(s, f0)
+    k2 = rhs(s + h / 2 * k1, fm)
+    k3 = rhs(s + h / 2 * k2, fm)
+    k4 = rhs(s + h * k3, f1)
+    return s + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
+def sample_map(prony: Prony, dt: float, method: str, substeps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(Phi, P, Q): one sample period of ``substeps`` steps, s_next = Phi s + P f_n + Q f_{n+1}
+    (the load linear between the samples, evaluated at every substep)."""
+    phi, g0, g1 = step_matrices(prony, dt / substeps, method)
+    m = len(g0)
+    big, p, q = np.eye(m), np.zeros(m), np.zeros(m)
+    for k in range(substeps):
+        a0, a1 = k / substeps, (k + 1) / substeps
+        big = phi @ big
+        p = phi @ p + g0 * (1 - a0) + g1 * (1 - a1)
+        q = phi @ q + g0 * a0 + g1 * a1
+    return big, p, q
+
+
+def integrate(force: np.ndarray, dt: float, prony: Prony, method: str = "exponential",
+              substeps: int = 1, check_stability: bool = True, loop: bool = False) -> np.ndarray:
+    """Sensor reading of load-driven viscoelastic pillars.
+
+    force: (T, ...) true pillar forces at samples dt apart (starting from rest: relaxed, unloaded).
+    Returns the readings, same shape, float64.
+
+    The chosen method's step is an affine map of (s, f), so by default a whole sample period is one
+    map and the recursion runs per mode with ``scipy.signal.lfilter`` (fast, same numbers as
+    stepping). ``loop=True`` steps in Python instead, the explicit methods stage by stage: what the
+    integrator benchmark times, so that every method is timed the same way.
+    """
+    force = np.asarray(force, np.float64)
+    if not prony.active or len(force) == 0:
+        return force.copy()
+    if method not in METHODS:
+        raise ConfigError(f"simulate_volume.creep_integrator '{method}' must be one of {list(METHODS)}")
+    if int(substeps) < 1:
+        raise ConfigError(f"simulate_volume.creep_substeps must be >= 1 (got {substeps})")
+    substeps = int(substeps)
+    h = dt / substeps
+    limit = stability_limit_s(prony, method)
+    if check_stability and h > limit:
+        raise ConfigError(
+            f"simulate_volume.creep_integrator '{method}' is unstable at a step of {h * 1e3:.3g} ms "
+            f"(sample period {dt * 1e3:.3g} ms / {substeps} substeps): its limit for the fastest "
+            f"creep mode is {limit * 1e3:.3g} ms. Use 'exponential' or 'implicit_euler', or "
+            f"creep_substeps >= {int(np.ceil(dt / limit))}")
+    shape = force.shape
+    f = force.reshape(len(force), -1)
+    g = np.asarray(prony.fractions, float)
+    with np.errstate(over="ignore", invalid="ignore"):
+        if loop:
+            out = _loop(f, h, substeps, prony, method, g)
+        else:
+            out = _modal(f, dt, substeps, prony, method, g)
+    return out.reshape(shape)
+
+
+def _loop(f, h, substeps, prony, method, g):
+    phi, g0, g1 = step_matrices(prony, h, method)
+    phi_t = phi.T
+    s = np.zeros((f.shape[1], len(g)))
+    out = np.empty_like(f)
+    out[0] = prony.g_inf * f[0]
+    for n in range(len(f) - 1):
+        fa, fb = f[n], f[n + 1]
+        for k in range(substeps):
+            lo = fa + (fb - fa) * (k / substeps)
+            hi = fa + (fb - fa) * ((k + 1) / substeps)
+            if method in ("euler", "rk4"):
+                s = _explicit_step(prony, h, method, s, lo, hi)
+            else:
+                s = s @ phi_t + lo[:, None] * g0[None, :] + hi[:, None] * g1[None, :]
+        out[n + 1] = prony.g_inf * fb + s @ g
+    return out
+
+
+def _modal(f, dt, substeps, prony, method, g):
+    """z_n = s_n - Q f_n follows z_{n+1} = Phi z_n + (Phi Q + P) f_n; in the eigenbasis of A (shared
+    by Phi, real: see stability_limit_s) every mode is a first-order recursion."""
+    big, p, q = sample_map(prony, dt, method, substeps)
+    lam, vec = np.linalg.eig(prony.system()[0])
+    vec = np.real(vec)
+    inv = np.linalg.inv(vec)
+    mu = np.real(np.diag(inv @ big @ vec))
+    beta = inv @ (big @ q + p)
+    readout = g @ vec
+    z0 = -np.outer(f[0], inv @ q)                       # s_0 = 0
+    out = (prony.g_inf + g @ q) * f
+    for k in range(len(mu)):
+        mode = lfilter([0.0, beta[k]], [1.0, -mu[k]], f, axis=0, zi=z0[None, :, k])[0]
+        out += readout[k] * mode
+    return out
+
+
+def integrate_params(force: np.ndarray, dt: float, sim: dict) -> np.ndarray:
+    """``integrate`` with the simulate_volume parameters (no creep when the keys are absent)."""
+    return integrate(force, dt, Prony.from_params(sim), sim.get("creep_integrator", "exponential"),
+                     sim.get("creep_substeps", 1))
+
+
+def step_response(t: np.ndarray, prony: Prony) -> np.ndarray:
+    """Exact reading for a unit force step at t = 0 (modal solution), for tests and the benchmark."""
+    a, b = prony.system()
+    g = np.asarray(prony.fractions, float)
+    lam, vec = np.linalg.eig(a)
+    # s(t) = -A^-1 b + V e^{lam t} V^-1 (A^-1 b)   with s(0) = 0
+    s_inf = -np.linalg.solve(a, b)
+    coef = np.linalg.solve(vec, -s_inf)
+    s = s_inf[None, :] + np.real((vec[None, :, :] * (coef * np.exp(np.outer(t, lam)))[:, None, :]).sum(-1))
+    return prony.g_inf + s @ g
+
+
+# --- integrator benchmark: error against run time ------------------------------------------------
+
+def benchmark_load(t: np.ndarray, grip_n: float = 2.0, tap_n: float = 1.0) -> np.ndarray:
+    """Test load of one pillar (N): the gripper closes over 0.6 s (the lift simulator's grip ramp),
+    then a 20-ms minimum-jerk load step (a quick tap / weight set down) at 1.5 s, held."""
+    def mj(x):
+        x = np.clip(x, 0.0, 1.0)
+        return 10 * x**3 - 15 * x**4 + 6 * x**5
+    return grip_n * mj((t - 0.3) / 0.6) + tap_n * mj((t - 1.5) / 0.02)
+
+
+def reference_reading(prony: Prony, duration_s: float, h_ref: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """(t, reading) of ``benchmark_load`` by the exponential integrator on a 1-us grid (the load
+    evaluated exactly there; its linear interpolation error is below 1e-8 N at this step)."""
+    n = int(round(duration_s / h_ref)) + 1
+    t = np.arange(n) * h_ref
+    return t, integrate(benchmark_load(t), h_ref, prony, "exponential")
+
+
+def benchmark(prony: Prony, rates_hz=(100, 250, 500, 1000), substeps=(1, 2, 4, 8, 16),
+              duration_s: float = 3.0, channels: int = 54, repeats: int = 3, methods=METHODS):
+    """Error against run time of every integrator and step size, against the fine-step reference.
+
+    Per (method, sample rate, substeps): max and RMS |reading - reference| at the samples (N; the
+    reference solves the continuous load, so this includes the error of knowing the load only at
+    the samples), ``integration_error_n``: max error against the exact solution for the sampled
+    load taken linear between samples (the integrator's own error; the exponential integrator's is
+    round-off), whether the step is within the method's stability limit, whether it diverged, and the wall time
+    of one simulated lift's worth of channels (``channels`` pillar axes over ``duration_s``) stepped
+    in Python (``loop_ms``, every method timed the same way) and by the simulator's modal
+    recursion (``modal_ms``). Returns a pandas DataFrame.
+    """
+    import time
+
+    import pandas as pd
+
+    t_ref, r_ref = reference_reading(prony, duration_s)
+    h_ref = t_ref[1] - t_ref[0]
+    rows = []
+    for rate in rates_hz:
+        dt = 1.0 / rate
+        n = int(round(duration_s * rate)) + 1
+        t = np.arange(n) * dt
+        ref = r_ref[np.rint(t / h_ref).astype(np.int64)]
+        load = benchmark_load(t)
+        many = np.repeat(load[:, None], channels, axis=1)
+        exact = integrate(load, dt, prony, "exponential", 1)
+        for method in methods:
+            limit = stability_limit_s(prony, method)
+            for k in substeps:
+                reading = integrate(load, dt, prony, method, k, check_stability=False)
+                err = np.abs(reading - ref)
+                diverged = (not np.isfinite(err).all()) or err.max() > 1e3 * np.abs(load).max()
+                timings = {}
+                for name, loop in (("loop_ms", True), ("modal_ms", False)):
+                    integrate(many[:3], dt, prony, method, k, check_stability=False, loop=loop)  # warm-up
+                    best = np.inf
+                    for _ in range(repeats):
+                        t0 = time.perf_counter()
+                        integrate(many, dt, prony, method, k, check_stability=False, loop=loop)
+                        best = min(best, time.perf_counter() - t0)
+                        if best > 1.0:
+                            break
+                    timings[name] = best * 1e3
+                rows.append({"method": method, "rate_hz": int(rate), "substeps": int(k),
+                             "step_ms": dt / k * 1e3, "within_stability_limit": bool(dt / k <= limit),
+                             "diverged": bool(diverged),
+                             "max_error_n": float("inf") if diverged else float(err.max()),
+                             "rms_error_n": float("inf") if diverged else float(np.sqrt(np.mean(err**2))),
+                             "integration_error_n": float("inf") if diverged
+                             else float(np.abs(reading - exact).max()),
+                             **timings})
+    return pd.DataFrame(rows)

@@ -1,0 +1,168 @@
+"""Which library files a pipeline stage runs, found from its imports (never listed by hand).
+
+A stage is one function of the command line (`cmd_*` in a study's module `tactilepipe.cli.<study>`).
+Its code is:
+- the entry files (`__main__`, `cli/main.py`), without what they import for the other studies;
+- the stage's module and everything its module level imports;
+- every module the stage function imports (stages import lazily, inside the function), and
+  those imported by the module-level helpers of its module that the function calls;
+- the transitive closure of those modules within `tactilepipe`, counting every import in a
+  module, at module level or inside a function (conservative: an import that only one branch
+  executes still counts), plus the `__init__.py` of each package on the way.
+
+Snakemake rules list these files as inputs, so editing one re-runs exactly the rules whose stage
+imports it; the dvc.yaml generator lists them as stage deps. The parameter keys a stage reads are
+found the same way, from the keys it hands to `cli.common.stage_params`, so both come from one place.
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+from functools import lru_cache
+from pathlib import Path
+
+from tactilepipe.core.errors import TactilepipeError
+
+PACKAGE = "tactilepipe"
+PACKAGE_DIR = Path(__file__).resolve().parents[1]     # src/tactilepipe
+CLI_PACKAGE = f"{PACKAGE}.cli"
+ENTRY = f"{CLI_PACKAGE}.main"
+
+
+def module_path(module: str) -> Path | None:
+    """File of a `tactilepipe...` module or package, or None if there is none."""
+    parts = module.split(".")
+    if parts[0] != PACKAGE:
+        return None
+    base = PACKAGE_DIR.joinpath(*parts[1:])
+    for candidate in (base.with_suffix(".py"), base / "__init__.py"):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+@lru_cache(maxsize=None)
+def _tree(path: Path) -> ast.Module:
+    return ast.parse(path.read_text(), filename=str(path))
+
+
+def _imports_in(node: ast.AST, module: str, is_package: bool) -> set[str]:
+    """Modules of `tactilepipe` imported anywhere under ``node`` (``from a import b`` counts both
+    a and a.b, since b may be a submodule)."""
+    found = set()
+    for n in ast.walk(node):
+        if isinstance(n, ast.Import):
+            found.update(a.name for a in n.names)
+        elif isinstance(n, ast.ImportFrom):
+            if n.level:
+                anchor = module.split(".")
+                anchor = anchor[:len(anchor) - n.level + (1 if is_package else 0)]
+                base = ".".join(anchor + ([n.module] if n.module else []))
+            else:
+                base = n.module or ""
+            found.add(base)
+            found.update(f"{base}.{a.name}" for a in n.names)
+    return {m for m in found if m.split(".")[0] == PACKAGE and module_path(m) is not None}
+
+
+def _with_parents(module: str) -> set[str]:
+    parts = module.split(".")
+    return {".".join(parts[:i]) for i in range(1, len(parts) + 1)}
+
+
+@lru_cache(maxsize=None)
+def module_closure(module: str) -> frozenset[str]:
+    """Every `tactilepipe` module that importing ``module`` can execute (itself included)."""
+    seen: set[str] = set()
+    todo = [module]
+    while todo:
+        m = todo.pop()
+        for name in _with_parents(m):
+            if name in seen or module_path(name) is None:
+                continue
+            seen.add(name)
+            path = module_path(name)
+            todo.extend(_imports_in(_tree(path), name, path.name == "__init__.py"))
+    return frozenset(seen)
+
+
+def _study_modules() -> list[str]:
+    """The CLI's per-study modules (every ``cli/*.py`` but the entry point and the shared helpers)."""
+    return sorted(f"{CLI_PACKAGE}.{f.stem}" for f in module_path(CLI_PACKAGE).parent.glob("*.py")
+                  if f.stem not in {"__init__", ENTRY.rsplit(".", 1)[1]})
+
+
+def _functions(module: str) -> dict[str, ast.FunctionDef]:
+    return {n.name: n for n in _tree(module_path(module)).body if isinstance(n, ast.FunctionDef)}
+
+
+def _called_helpers(func: ast.FunctionDef, functions: dict[str, ast.FunctionDef]) -> list[ast.FunctionDef]:
+    """``func`` and the module-level functions of its module it calls, directly or through each other."""
+    out, todo, seen = [], [func], set()
+    while todo:
+        f = todo.pop()
+        if f.name in seen:
+            continue
+        seen.add(f.name)
+        out.append(f)
+        todo.extend(functions[n.id] for n in ast.walk(f)
+                    if isinstance(n, ast.Name) and n.id in functions and n.id != f.name)
+    return out
+
+
+@lru_cache(maxsize=None)
+def _stage_module(stage: str) -> str:
+    """The CLI module that defines the stage function ``stage``."""
+    homes = {name: m for m in _study_modules() for name in _functions(m) if name.startswith("cmd_")}
+    if stage not in homes:
+        raise TactilepipeError(f"no pipeline stage '{stage}' in {CLI_PACKAGE} (stages: {sorted(homes)})")
+    return homes[stage]
+
+
+@lru_cache(maxsize=None)
+def stage_modules(stage: str) -> frozenset[str]:
+    """Modules the CLI stage function ``stage`` (e.g. "cmd_report_volume") runs."""
+    home = _stage_module(stage)
+    functions = _functions(home)
+    tree = _tree(module_path(home))
+    top = ast.Module(body=[n for n in tree.body if isinstance(n, (ast.Import, ast.ImportFrom))], type_ignores=[])
+    # the stage's module runs its module level and the stage's functions, not its other stages
+    roots = _imports_in(top, home, False)
+    for f in _called_helpers(functions[stage], functions):
+        roots |= _imports_in(f, home, False)
+    # rules run `python -m tactilepipe`, which enters through __main__ and the parser of every
+    # study (cli.main): those files count, but not what they import for other studies
+    closure: set[str] = _with_parents(home) | {f"{PACKAGE}.__main__", ENTRY}
+    for m in roots:
+        closure |= module_closure(m)
+    return frozenset(closure)
+
+
+def stage_files(stage: str, root: Path | None = None) -> list[str]:
+    """Source files of ``stage``, sorted, as paths relative to ``root`` (default: the repository)."""
+    root = root or PACKAGE_DIR.parents[1]
+    return sorted(str(module_path(m).relative_to(root)) for m in stage_modules(stage))
+
+
+def stage_param_keys(stage: str) -> tuple[str, ...]:
+    """The dotted parameter keys the stage hands to `stage_params` (the only ones it can read)."""
+    keys: list[str] = []
+    functions = _functions(_stage_module(stage))
+    for f in _called_helpers(functions[stage], functions):
+        for n in ast.walk(f):
+            if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "stage_params":
+                for arg in n.args[1:]:
+                    if not (isinstance(arg, ast.Constant) and isinstance(arg.value, str)):
+                        raise TactilepipeError(f"{_stage_module(stage)}.{f.name}: stage_params keys must be string literals")
+                    keys.append(arg.value)
+    return tuple(dict.fromkeys(keys))
+
+
+def stage_fingerprint(stage: str) -> str:
+    """sha256 over the module names and file contents of the stage's code (one value per stage,
+    the same wherever the package is installed)."""
+    h = hashlib.sha256()
+    for m in sorted(stage_modules(stage)):
+        h.update(m.encode() + b"\0" + module_path(m).read_bytes() + b"\0")
+    return h.hexdigest()

@@ -1,0 +1,103 @@
+"""What made a scene's results: code, parameters, input sessions, packages, machine and commit.
+
+Written as ``provenance.json`` beside each scene's ``metrics.json`` and tracked the same way, so
+`dvc metrics diff` between two commits shows, next to a number that moved, which of these moved
+with it. Run times are kept out of both (``runtime.json``): they change on every run and would
+bury the differences that matter; `dvc metrics diff --targets <scene>/runtime.json` shows them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import platform
+import subprocess
+from importlib import metadata
+from pathlib import Path
+
+from tactilepipe.pipeline import codedeps
+from tactilepipe.core.atomic import write_json
+from tactilepipe.core.config import declared
+from tactilepipe.core.hashing import file_sha256
+
+PACKAGES = ("torch", "numpy", "scikit-learn", "pandas")
+# environment variables that cap the instruction set of torch's and oneDNN's kernels
+KERNEL_VARIABLES = ("ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA", "DNNL_MAX_CPU_ISA", "OMP_NUM_THREADS")
+
+
+def session_hash(path: str | Path) -> str:
+    """sha256 over the relative names and contents of every file of a recording session (a folder,
+    or a single file), independent of file times and of the order the files were written in."""
+    path = Path(path)
+    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    h = hashlib.sha256()
+    for f in files:
+        rel = f.relative_to(path).as_posix() if path.is_dir() else f.name
+        h.update(f"{rel}\0{file_sha256(f)}\0".encode())
+    return h.hexdigest()
+
+
+def environment() -> dict:
+    """Package versions and the CPU instruction set the numerical kernels chose (the same code and
+    data give slightly different trained models on different instruction sets)."""
+    versions = {}
+    for name in PACKAGES:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = None
+    env = {"python": platform.python_version(), "packages": versions, "machine": platform.machine(),
+           "cpu": _cpu(), "kernel_settings": {k: os.environ.get(k) for k in KERNEL_VARIABLES}}
+    try:
+        import torch
+        env["torch_cpu_capability"] = torch.backends.cpu.get_cpu_capability()
+    except ImportError:
+        env["torch_cpu_capability"] = None
+    return env
+
+
+def _cpu() -> dict:
+    """CPU model and the vector extensions the math libraries choose kernels by (Linux)."""
+    model, flags = platform.processor() or None, set()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            key, _, value = line.partition(":")
+            if key.strip() == "model name" and value.strip():
+                model = value.strip()
+            elif key.strip() == "flags":
+                flags = set(value.split())
+    except OSError:
+        pass
+    return {"model": model, "vector_extensions": sorted(f for f in flags if f.startswith(("avx", "amx", "fma")))}
+
+
+def git_state(root: str | Path = ".") -> dict:
+    """The commit the code was at, and whether the workflow's code or parameters had uncommitted
+    changes when the result was made (then the commit alone does not describe it)."""
+    def git(*args):
+        proc = subprocess.run(["git", *args], cwd=root, capture_output=True, text=True)
+        return proc.stdout.strip() if proc.returncode == 0 else None
+    try:
+        commit = git("rev-parse", "HEAD")
+        dirty = git("status", "--porcelain", "--", "src", "workflow", "Snakefile", "params.yaml")
+    except OSError:
+        commit = dirty = None
+    return {"commit": commit, "uncommitted_changes": bool(dirty) if commit else None}
+
+
+def scene_provenance(stages: list[str], params: dict, sessions: list[str | Path]) -> dict:
+    """Provenance of a scene made by the CLI ``stages`` from ``sessions`` under ``params`` (the
+    resolved parameters: each stage's entry records the values it declares)."""
+    return {
+        "stages": {s: {"code_sha256": codedeps.stage_fingerprint(s),
+                       "params": declared(params, codedeps.stage_param_keys(s), s)} for s in stages},
+        "sessions": {str(s): session_hash(s) for s in sessions},
+        "environment": environment(),
+        "git": git_state(),
+    }
+
+
+def write_provenance(path: str | Path, stages: list[str], params: dict, sessions: list[str | Path]) -> dict:
+    prov = scene_provenance(stages, params, sessions)
+    write_json(path, prov)
+    return prov

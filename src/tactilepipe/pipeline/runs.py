@@ -1,0 +1,58 @@
+"""The training runs of a tool scene: their names and what each name trains.
+
+One place for the naming that the workflow, the compute estimate and the report share. From the
+parameter groups ``tool_train`` and ``tool_split``:
+- ``<variant>``: the variant on repeat 0 of the default split (the run the figures draw);
+- ``<variant>_r<k>``: the variant on repeat k (its own split seed and model seed);
+- ``full_loto_<tool>``: the full model with that tool left out (every tool in turn);
+- ``full_d<depth>_s<size>``: the full model at another depth / input size (the sweep: error
+  against run time);
+- ``full_<split>``: the full model on another split (study 000's protocols).
+"""
+
+from __future__ import annotations
+
+import re
+
+from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.tool.data.splits import parse_split_name, split_name
+
+
+def sweep_run_name(entry: dict) -> str:
+    return f"full_d{entry['depth']}_s{entry['image_size']}"
+
+
+def repeat_runs(variant: str, repeats: int) -> list[str]:
+    """Run names of one variant over the repeats of the default split, repeat 0 first."""
+    return [variant if k == 0 else f"{variant}_r{k}" for k in range(repeats)]
+
+
+def loto_run_name(tool: str) -> str:
+    return f"full_loto_{tool}"
+
+
+def tool_runs(tool_train: dict, repeats: int, tools: list[str]) -> list[str]:
+    """Every run of a scene: each variant on every repeat, leave-one-tool-out for every tool
+    (when ``tool_train.loto``), then the sweep."""
+    runs = [r for v in tool_train["variants"] for r in repeat_runs(v, repeats)]
+    runs += [loto_run_name(t) for t in sorted(tools)] if tool_train["loto"] else []
+    return runs + [sweep_run_name(s) for s in tool_train["sweep"]]
+
+
+def run_spec(tool_train: dict, run: str) -> tuple[str, str, int, int]:
+    """(variant, split name, depth, image size) of a run name."""
+    depth, size, split = tool_train["depth"], tool_train["image_size"], tool_train["split"]
+    for s in tool_train["sweep"]:
+        if run == sweep_run_name(s):
+            return "full", split, s["depth"], s["image_size"]
+    if run in tool_train["variants"]:
+        return run, split, depth, size
+    m = re.fullmatch(r"(.+)_r([1-9][0-9]*)", run)
+    if m and m.group(1) in tool_train["variants"]:
+        return m.group(1), split_name(split, int(m.group(2))), depth, size
+    if run.startswith("full_"):
+        other = run[len("full_"):]
+        parse_split_name(other)          # refuses a name that is no split
+        return "full", other, depth, size
+    raise TactilepipeError(f"run '{run}': not a tool run (variants {tool_train['variants']}, <variant>_r<k>, "
+                           f"full_loto_<tool>, full_d<depth>_s<size> of tool_train.sweep, full_<split>)")

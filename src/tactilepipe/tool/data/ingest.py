@@ -1,0 +1,226 @@
+"""RawTrial -> one Parquet shard: preprocessed frames (grayscale, resized, PNG-encoded) of both
+sensors with their times, and the force rows on the same clock.
+
+Here a frame becomes a small grayscale image: BGR -> gray -> resize to ``image_size`` (area
+interpolation), encoded losslessly. The force clock is refined against the images when the
+importer asks for it (RawTrial.clock["refine"]; tool/data/clock_sync.py), and a camera that froze
+while the force changed is refused whatever the layout.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from tactilepipe.core.atomic import atomic_path
+from tactilepipe.core.errors import InputError
+from tactilepipe.tool.formats.raw import RawTrial
+from tactilepipe.tool.data.clock_sync import change_signal, fit_offset, frozen_frames, frozen_runs, judge
+
+
+def preprocess(bgr: np.ndarray, size: int) -> np.ndarray:
+    """What the models see of a frame: grayscale, size x size."""
+    gray = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
+    return cv2.resize(gray, (size, size), interpolation=cv2.INTER_AREA)
+
+
+# A DIGIT frame always shows its LEDs' gradient over the gel: a frame that is (almost) all black
+# (LEDs off, camera unplugged) or all white (over-exposed) carries no contact and is an error.
+DARK_LEVEL, BRIGHT_LEVEL = 10, 245      # gray levels
+BLANK_FRACTION = 0.95                   # of the (preprocessed) pixels
+
+
+def check_frame(bgr: np.ndarray, first_shape: tuple | None, where: str, name: str) -> None:
+    """InputError naming the frame unless it is BGR uint8 of the sensor's first frame's size."""
+    if bgr.ndim != 3 or bgr.shape[2] != 3 or bgr.dtype != np.uint8:
+        raise InputError(where, f"{name}: expected a 3-channel uint8 BGR frame, got {bgr.dtype} {bgr.shape}")
+    if first_shape is not None and bgr.shape != first_shape:
+        raise InputError(where, f"{name}: frame is {bgr.shape[1]}x{bgr.shape[0]}, the sensor's first frame is "
+                                f"{first_shape[1]}x{first_shape[0]}")
+
+
+def check_exposure(gray: np.ndarray, where: str, name: str) -> None:
+    """InputError naming the frame if it is (almost) all black or all white."""
+    if (gray <= DARK_LEVEL).mean() >= BLANK_FRACTION:
+        raise InputError(where, f"{name}: frame is all black (LEDs off or camera not streaming?)")
+    if (gray >= BRIGHT_LEVEL).mean() >= BLANK_FRACTION:
+        raise InputError(where, f"{name}: frame is saturated (all white: over-exposed?)")
+
+
+# Frames bit-identical over this many in a row: the camera re-delivered a stale buffer (a real
+# sensor's noise never repeats an exposure). Harmless at rest, wrong labels while the force moves.
+FROZEN_RUN = 3
+
+
+def _decode_sensor(frames, size: int, name: str) -> tuple[list[bytes], np.ndarray, list[int]]:
+    """PNG bytes of every preprocessed frame, the frames themselves (n, size, size) and the
+    recorded frame size [width, height]."""
+    pngs, grays = [], np.zeros((len(frames), size, size), np.uint8)
+    first_shape = None
+    for i in range(len(frames)):
+        bgr = frames.load(i)
+        check_frame(bgr, first_shape, frames.source[i], name)
+        first_shape = bgr.shape
+        img = preprocess(bgr, size)
+        check_exposure(img, frames.source[i], name)
+        grays[i] = img
+        ok, buf = cv2.imencode(".png", img, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+        if not ok:
+            raise InputError(frames.source[i], f"{name}: cannot PNG-encode the preprocessed frame")
+        pngs.append(buf.tobytes())
+    return pngs, grays, [int(first_shape[1]), int(first_shape[0])]
+
+
+def _refine_clock(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.ndarray, ingest: dict
+                  ) -> tuple[int, dict]:
+    """Shift (ns) to add to the coarse force times, and the clock record; InputError when the
+    offset cannot be found and the parameters say to refuse."""
+    clock, search = ingest["clock"], ingest["max_offset_s"]
+    mag = np.linalg.norm(force, axis=1)
+    spread = float(mag.max() - mag.min())
+    if spread < clock["min_force_range_n"]:
+        raise InputError(raw.source, f"the force log is flat (|F| varies by {spread:.3f} N < "
+                                     f"tool_ingest.clock.min_force_range_n {clock['min_force_range_n']} N): nothing "
+                                     f"to align the Arduino clock on (Nano17 unplugged, or no press?)")
+    ref = next(iter(raw.frames.values())).host_ns[0]
+    fingers = {n: ((f.host_ns - ref) / 1e9, change_signal(grays[n])) for n, f in raw.frames.items()}
+    fit = fit_offset(fingers, (force_ns - ref) / 1e9, mag, search)
+    record = fit.record()
+    if fit.on_edge:
+        raise InputError(raw.source, f"the clock offset found ({fit.shift_s:+.3f} s, correlation {fit.score:.2f}) is on "
+                                     f"the edge of the search window +-{search} s: the true offset may lie beyond "
+                                     f"it (tool_ingest.max_offset_s), or the images do not follow the force")
+    why = judge(fit, clock, search)
+    if why is None:
+        return int(round(fit.shift_s * 1e9)), record
+    if clock["on_low_score"] == "refuse":
+        raise InputError(raw.source, f"cannot align the force clock to the cameras: {why}")
+    if clock["on_low_score"] == "drop":
+        # the shard is written (the graph needs it) but marked: the dataset leaves the trial out
+        print(f"warning: {raw.source}: left out of the dataset, force clock not aligned: {why}", file=sys.stderr)
+        record.update({"refined_shift_s": 0.0, "dropped": f"clock not aligned: {why}"})
+        return 0, record
+    # host_clock: keep the port-open clock (good to ~0.1-0.5 s), say so now and in QC
+    print(f"warning: {raw.source}: force clock not refined, host clock kept: {why}", file=sys.stderr)
+    record.update({"refined_shift_s": 0.0, "fallback": f"host clock: {why}"})
+    return 0, record
+
+
+def _check_frozen(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.ndarray, limit_n: float,
+                  whole_only: bool = False) -> None:
+    """InputError for a camera whose frames are all bit-identical, or (unless ``whole_only``, used
+    while the force clock is still coarse) stay identical while |F| changes by more than
+    ``limit_n`` (its labels would follow the force, its images would not)."""
+    mag = np.linalg.norm(force, axis=1)
+    for name, frames in raw.frames.items():
+        for a, b in frozen_runs(frozen_frames(grays[name]), FROZEN_RUN):
+            if whole_only and not (a == 0 and b == len(frames) - 1):
+                continue
+            t0, t1 = frames.host_ns[a], frames.host_ns[b]
+            inside = mag[(force_ns >= t0) & (force_ns <= t1)]
+            ends = np.interp([t0, t1], force_ns, mag)
+            seen = np.concatenate([inside, ends])
+            change = float(seen.max() - seen.min())
+            if change > limit_n or (a == 0 and b == len(frames) - 1):
+                raise InputError(frames.source[a], f"{name}: frames {a}-{b} of {len(frames)} are bit-identical while "
+                                                   f"|F| changes by {change:.2f} N: the camera froze")
+
+
+def _reference_rows(raw: RawTrial, size: int) -> list[tuple[str, bytes]]:
+    """(sensor, PNG) of each stored reference frame of the trial, preprocessed as its frames."""
+    out = []
+    for name, bgr in sorted(raw.reference.items()):
+        where = f"{raw.source} (reference frame of {name})"
+        check_frame(bgr, None, where, name)
+        img = preprocess(bgr, size)
+        check_exposure(img, where, name)
+        ok, buf = cv2.imencode(".png", img, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+        if not ok:
+            raise InputError(where, f"{name}: cannot PNG-encode the preprocessed reference frame")
+        out.append((name, buf.tobytes()))
+    return out
+
+
+def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, ingest: dict) -> dict:
+    """Write the shard atomically; returns the trial's QC record (counts, clock offset found).
+
+    ``ingest``: params.yaml's tool_ingest group (max_offset_s and clock: how the force clock is
+    refined and when a fit is refused).
+
+    The record's ``drops`` are the importer's counted drops by reason (e.g. "serial: garbage
+    bytes", "serial: ADC saturated": Nano17 samples at the ADC rails, left out of the force rows);
+    ``force_samples`` counts the force rows written, after those drops.
+    """
+    why = f" ({', '.join(f'{k} {v}' for k, v in raw.drops.items() if v)} dropped)" if any(raw.drops.values()) else ""
+    empty = [name for name, frames in raw.frames.items() if len(frames) == 0]
+    if empty or not raw.frames:
+        raise InputError(raw.source, f"no frames of {empty or 'any sensor'} to ingest{why}")
+    if len(raw.force_host_ns) == 0:     # e.g. every sample saturated or garbled (counted in raw.drops)
+        raise InputError(raw.source, f"no force samples{why}")
+    decoded = {name: _decode_sensor(frames, image_size, name) for name, frames in raw.frames.items()}
+    force_ns = raw.force_host_ns.astype(np.int64)
+    force = np.asarray(raw.force_n, np.float64)
+    if not np.isfinite(force).all():
+        bad = int(np.argmax(~np.isfinite(force).all(axis=1)))
+        raise InputError(raw.source, "force is NaN or inf", f"force sample {bad}")
+    clock = dict(raw.clock)
+    grays = {name: d[1] for name, d in decoded.items()}
+    if clock.get("refine"):
+        _check_frozen(raw, grays, force_ns, force, ingest["clock"]["min_force_range_n"], whole_only=True)
+        shift_ns, record = _refine_clock(raw, grays, force_ns, force, ingest)
+        force_ns = force_ns + shift_ns
+        clock.update(record)
+    _check_frozen(raw, grays, force_ns, force, ingest["clock"]["min_force_range_n"])
+    rows_sensor, rows_t, rows_png = [], [], []
+    for name, (pngs, _, _) in decoded.items():
+        rows_sensor += [name] * len(pngs)
+        rows_t.append(raw.frames[name].host_ns.astype(np.int64))
+        rows_png += pngs
+    n_frames, n_force = len(rows_png), len(force_ns)
+    refs = _reference_rows(raw, image_size)            # "reference" rows: a stored zero-force frame per sensor
+    rows_sensor += [name for name, _ in refs]
+    rows_t += [raw.frames[name].host_ns[:1].astype(np.int64) for name, _ in refs]
+    rows_png += [png for _, png in refs]
+    n_frames, kinds = len(rows_png), ["frame"] * n_frames + ["reference"] * len(refs)
+    table = pa.table({
+        "row": pa.array(kinds + ["force"] * n_force).dictionary_encode(),
+        "sensor": pa.array(rows_sensor + [None] * n_force, pa.string()),
+        "t_ns": pa.array(np.concatenate(rows_t + [force_ns])),
+        "png": pa.array(rows_png + [None] * n_force, pa.binary()),
+        "fx": pa.array(np.concatenate([np.full(n_frames, np.nan), force[:, 0]])),
+        "fy": pa.array(np.concatenate([np.full(n_frames, np.nan), force[:, 1]])),
+        "fz": pa.array(np.concatenate([np.full(n_frames, np.nan), force[:, 2]])),
+    })
+    info = {"trial": raw.trial, "tool": raw.tool, "kind": raw.kind, "orientation_deg": raw.orientation_deg,
+            "insertion_mm": raw.insertion_mm, "image_size": image_size, "clock": clock,
+            "drops": raw.drops, "frames": {n: len(f) for n, f in raw.frames.items()}, "force_samples": n_force,
+            "frame_size": {n: d[2] for n, d in decoded.items()},   # [w, h] before the square resize
+            "source": raw.source}
+    table = table.replace_schema_metadata({b"tactilepipe": json.dumps(info).encode()})
+    with atomic_path(shard) as tmp:
+        pq.write_table(table, tmp, compression="zstd")
+    return info
+
+
+def read_shard_info(shard: str | Path) -> dict:
+    try:
+        meta = pq.read_schema(shard).metadata or {}
+    except FileNotFoundError:
+        raise InputError(shard, "shard not found") from None
+    except (OSError, pa.ArrowException) as exc:      # truncated, empty, not Parquet
+        raise InputError(shard, f"cannot read shard (truncated or not Parquet?): {exc}") from None
+    if b"tactilepipe" not in meta:
+        raise InputError(shard, "not a tool shard (no tactilepipe metadata)")
+    try:
+        info = json.loads(meta[b"tactilepipe"])
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(shard, f"corrupt tactilepipe metadata: {exc}") from None
+    if not isinstance(info, dict) or not {"kind", "image_size", "trial", "source"} <= set(info):
+        raise InputError(shard, "tactilepipe metadata lacks kind, image_size, trial or source")
+    return info

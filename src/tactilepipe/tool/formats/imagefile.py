@@ -1,0 +1,42 @@
+"""Reading one frame file: OpenCV decodes a truncated JPEG without complaint (the missing rows
+come out grey), so a file must end where its format says it ends before it is decoded."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from tactilepipe.core.errors import InputError
+
+JPEG_START, JPEG_END = b"\xff\xd8", b"\xff\xd9"
+PNG_START, PNG_END = b"\x89PNG\r\n\x1a\n", b"IEND"
+# Some encoders pad a JPEG after its end marker; that much padding is still a whole image.
+MAX_PADDING = 1024
+
+
+def truncation(data: bytes) -> str | None:
+    """Why ``data`` is not a whole JPEG or PNG (None when it is, or is another format)."""
+    if data.startswith(JPEG_START):
+        tail = data[-MAX_PADDING - 2:].rstrip(b"\x00")
+        return None if tail.endswith(JPEG_END) else "truncated JPEG (no end-of-image marker)"
+    if data.startswith(PNG_START):
+        return None if PNG_END in data[-MAX_PADDING:] else "truncated PNG (no IEND chunk)"
+    return None
+
+
+def read_image(path: str | Path, flags: int = cv2.IMREAD_UNCHANGED, record: str | None = None) -> np.ndarray:
+    """Decode one image file; InputError for a missing, unreadable or truncated one."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(path, "unreadable or missing image (no such file)", record) from None
+    problem = truncation(data)
+    if problem:
+        raise InputError(path, f"unreadable or missing image: {problem}", record)
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), flags) if data else None
+    if img is None:
+        raise InputError(path, "unreadable or missing image (not a JPEG or PNG OpenCV can decode)", record)
+    return img

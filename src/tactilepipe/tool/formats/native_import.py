@@ -1,0 +1,73 @@
+"""The rig's own layout (tool/formats/native_layout.py) -> RawTrial.
+
+The force is put on the host clock coarsely here (port-open time + Arduino ms); ingest refines the
+offset by cross-correlation once the frames are decoded (clock["refine"] = True).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from tactilepipe.core.errors import InputError
+from tactilepipe.tool.formats.imagefile import read_image
+from tactilepipe.tool.formats.native_layout import DIGIT_SIZES, FRAME_NAME, SENSORS, TrialMeta, read_calibration, read_frame_index
+from tactilepipe.tool.formats.raw import RawTrial, SensorFrames
+from tactilepipe.tool.formats.serial_log import read_serial_log
+from tactilepipe.tool.data.sync import calibrate
+
+
+def read_bgr(path: Path, record: str | None = None) -> np.ndarray:
+    """Read one frame; unreadable or truncated files, a size no DIGIT streams, or the wrong channel
+    count are InputErrors. (That a sensor keeps one size is checked at ingest.)"""
+    img = read_image(path, cv2.IMREAD_UNCHANGED, record)
+    if img.ndim == 2:
+        raise InputError(path, f"grayscale image; a DIGIT frame has 3 channels (BGR)", record)
+    if img.shape[2] != 3 or img.dtype != np.uint8:
+        raise InputError(path, f"expected 3-channel uint8 BGR, got {img.shape[2]} channels of {img.dtype}", record)
+    if img.shape[:2] not in DIGIT_SIZES:
+        modes = ", ".join(f"{w}x{h}" for h, w in DIGIT_SIZES)
+        raise InputError(path, f"frame is {img.shape[1]}x{img.shape[0]}, not a DIGIT resolution ({modes})", record)
+    return img
+
+
+def _sensor_frames(sensor_dir: Path) -> tuple[SensorFrames, int]:
+    """The sensor's frames, and how many frame files frames.csv does not list (left out, counted)."""
+    stamps = read_frame_index(sensor_dir)
+    if len(stamps) == 0:
+        raise InputError(sensor_dir / "frames.csv", "no frames")
+    paths = [sensor_dir / FRAME_NAME.format(i) for i in range(len(stamps))]
+    missing = [p for p in paths if not p.exists()]
+    if missing:
+        raise InputError(missing[0], f"frames.csv lists {len(stamps)} frames but {len(missing)} files are missing")
+    listed = {p.name for p in paths}
+    extra = sum(1 for p in sensor_dir.glob("frame_*.png") if p.name not in listed)
+    return SensorFrames(stamps, lambda i: read_bgr(paths[i]), [str(p) for p in paths]), extra
+
+
+def read_native_trial(trial_dir: str | Path, bias_window_s: float = 0.5) -> RawTrial:
+    trial_dir = Path(trial_dir)
+    session_dir = trial_dir.parent
+    meta = TrialMeta.read(trial_dir)
+    frames, extra = {}, {}
+    for sensor in SENSORS:
+        if not (trial_dir / sensor).is_dir():
+            raise InputError(trial_dir / sensor, "missing sensor folder")
+        frames[sensor], extra[sensor] = _sensor_frames(trial_dir / sensor)
+    log = read_serial_log(trial_dir / "force.log")
+    matrix = read_calibration(session_dir / "nano17.cal")
+    rest = log.arduino_ms <= log.arduino_ms[0] + bias_window_s * 1000
+    if rest.sum() < 2:
+        raise InputError(trial_dir / "force.log", f"fewer than 2 samples in the first {bias_window_s} s "
+                                                  f"to take the zero-force bias from")
+    force = calibrate(log.counts, matrix, log.counts[rest].mean(axis=0))[:, :3]
+    host_ns = log.start_host_ns + log.arduino_ms * 1_000_000
+    return RawTrial(
+        trial=f"{session_dir.name}/{trial_dir.name}", tool=meta.tool, kind=meta.kind,
+        orientation_deg=meta.orientation_deg, insertion_mm=meta.insertion_mm, frames=frames,
+        force_host_ns=host_ns, force_n=force, source=str(trial_dir),
+        clock={"method": "serial_start+xcorr", "refine": True},
+        drops={**{f"serial: {k}": v for k, v in log.drops.items()},
+               **{f"{sensor}: frame files not in frames.csv": n for sensor, n in extra.items() if n}})

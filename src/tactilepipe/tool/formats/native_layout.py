@@ -1,0 +1,178 @@
+"""The native raw layout of a tool-force recording, as the rig writes it (and the simulator too).
+
+    raw/tool/<session>/
+      nano17.cal                  ATI calibration (XML; UserAxis rows: N per V for the 6 gauges)
+      <trial>/
+        meta.json                 tool, grasp pose, trial kind (see TrialMeta)
+        digit_left/frames.csv     frame,host_ns     (host clock, one row per frame)
+        digit_left/frame_000000.png ...             BGR uint8, portrait 240 wide x 320 high (QVGA; VGA
+                                                    and landscape frames are read too: DIGIT_SIZES)
+        digit_right/...           same for the other finger
+        force.log                 the Arduino's serial output, see below
+
+force.log: line 1 is `# start_host_ns=<int>` written by the host logger when it opened the
+port (only good to ~0.1 s: the offset is refined from the data); then one line per sample at
+~15 Hz: `<arduino_ms>,<a0>,<a1>,<a2>,<a3>,<a4>,<a5>`, the Arduino's own millisecond clock and
+the six Nano17 gauge channels as 10-bit ADC counts (0..1023 over 0..5 V, 512 at 2.5 V = 0 V
+gauge output through the DAQ adaptor's level shift). Forces are F = C · (v − v_bias), v the
+gauge voltage (counts · 5/1023 − 2.5), C the 6×6 matrix of nano17.cal, v_bias the mean of the
+zero-force samples at the start of the trial.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from tactilepipe.core.errors import InputError
+
+SENSORS = ("digit_left", "digit_right")
+FRAME_W, FRAME_H = 240, 320          # portrait QVGA, as digit-interface returns it
+# (height, width) of the DIGIT's stream modes, QVGA and VGA, either way up: the model sees every
+# frame resized to a square, so a trial's size only has to be one the sensor streams (and one
+# orientation per dataset: tool/data/dataset.py)
+DIGIT_SIZES = ((320, 240), (240, 320), (640, 480), (480, 640))
+ADC_COUNTS, ADC_VOLTS = 1023, 5.0
+ADC_ZERO_V = 2.5
+AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+FRAME_NAME = "frame_{:06d}.png"
+SERIAL_HEADER = re.compile(r"^#\s*start_host_ns=([0-9]+)\s*$")
+_UINT = re.compile(r"^[0-9]+$")
+_INT = re.compile(r"^-?[0-9]+$")
+
+
+@dataclass
+class TrialMeta:
+    trial: str
+    tool: str
+    kind: str                          # "normal" (pressing) or "shear" (sliding)
+    orientation_deg: float             # tilt of the tool axis in the grasp
+    insertion_mm: float                # how deep the handle sits between the fingers
+    camera_fps: float = 30.0
+    serial_hz: float = 15.0
+    notes: dict = field(default_factory=dict)
+
+    def write(self, trial_dir: str | Path) -> None:
+        from tactilepipe.core.atomic import write_json
+        write_json(Path(trial_dir) / "meta.json", asdict(self))
+
+    @classmethod
+    def read(cls, trial_dir: str | Path) -> "TrialMeta":
+        path = Path(trial_dir) / "meta.json"
+        try:
+            raw = json.loads(path.read_text())
+        except FileNotFoundError:
+            raise InputError(path, "missing: every trial needs meta.json") from None
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise InputError(path, f"not valid JSON: {exc}") from None
+        return cls.from_dict(raw, path)
+
+    @classmethod
+    def from_dict(cls, raw, where: str | Path, default_trial: str | None = None) -> "TrialMeta":
+        """Validated metadata from a mapping (meta.json, a bag's sidecar): every required key,
+        no unknown key, kind normal/shear, non-empty names, finite numbers."""
+        if isinstance(raw, cls):
+            raw = asdict(raw)
+        if not isinstance(raw, dict):
+            raise InputError(where, f"trial metadata must be a JSON object, got {type(raw).__name__}")
+        raw = dict(raw)
+        if default_trial is not None:
+            raw.setdefault("trial", default_trial)
+        missing = {"trial", "tool", "kind", "orientation_deg", "insertion_mm"} - set(raw)
+        if missing:
+            raise InputError(where, f"trial metadata missing keys {sorted(missing)}")
+        unknown = set(raw) - set(cls.__dataclass_fields__)
+        if unknown:
+            raise InputError(where, f"trial metadata has unknown keys {sorted(unknown)}")
+        if raw["kind"] not in ("normal", "shear"):
+            raise InputError(where, f"kind '{raw['kind']}' must be normal or shear")
+        for key in ("trial", "tool"):
+            if not isinstance(raw[key], str) or not raw[key]:
+                raise InputError(where, f"{key} must be a non-empty string, got {raw[key]!r}")
+        for key in ("orientation_deg", "insertion_mm", "camera_fps", "serial_hz"):
+            value = raw.get(key, 0.0)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise InputError(where, f"{key} must be a finite number, got {value!r}")
+        return cls(**raw)
+
+
+def read_frame_index(sensor_dir: str | Path) -> np.ndarray:
+    """host_ns of every frame (frame numbers must be 0..n-1 in order, stamps increasing)."""
+    path = Path(sensor_dir) / "frames.csv"
+    if not path.exists():
+        raise InputError(path, "missing: every sensor folder needs frames.csv (frame,host_ns)")
+    try:
+        lines = path.read_bytes().removeprefix(b"\xef\xbb\xbf").decode("ascii").split("\n")   # BOM: a spreadsheet
+    except UnicodeDecodeError as exc:
+        line = path.read_bytes()[:exc.start].count(b"\n") + 1
+        raise InputError(path, f"non-ASCII byte 0x{exc.object[exc.start]:02x}: not a frames.csv written by the rig",
+                         f"line {line}") from None
+    lines = [ln.removesuffix("\r") for ln in lines]
+    if lines and lines[-1] == "":
+        lines.pop()
+    if not lines or lines[0].strip() != "frame,host_ns":
+        raise InputError(path, "header must be 'frame,host_ns'", "line 1")
+    stamps = np.empty(len(lines) - 1, np.int64)
+    for i, line in enumerate(lines[1:]):
+        parts = [p.strip() for p in line.split(",")]
+        if len(parts) != 2 or not _UINT.match(parts[0]) or not _INT.match(parts[1]):
+            raise InputError(path, f"expected 'frame,host_ns' integers, got {line!r}", f"line {i + 2}")
+        if int(parts[0]) != i:
+            raise InputError(path, f"frame number {parts[0]} out of sequence (expected {i})", f"line {i + 2}")
+        if not -2**63 < int(parts[1]) < 2**63:
+            raise InputError(path, f"host_ns {parts[1]} does not fit in 64 bits", f"line {i + 2}")
+        stamps[i] = int(parts[1])
+    if len(stamps) and (np.diff(stamps) <= 0).any():
+        k = int(np.argmax(np.diff(stamps) <= 0)) + 1
+        raise InputError(path, "frame timestamps do not increase (clock jump or duplicate)", f"line {k + 2}")
+    return stamps
+
+
+def write_calibration(path: str | Path, matrix: np.ndarray, serial: str = "FT-SIM-0001") -> None:
+    """An ATI-style .cal XML with six UserAxis rows (N or N·mm per volt)."""
+    from tactilepipe.core.atomic import write_text
+    root = ET.Element("FTSensor", Serial=serial, BodyStyle="Nano17", Family="DAQ", NumGages="6")
+    cal = ET.SubElement(root, "Calibration", PartNumber="SI-25-0.25", ForceUnits="N", TorqueUnits="N-mm")
+    for name, row in zip(AXES, matrix):
+        ET.SubElement(cal, "UserAxis", Name=name, values=" ".join(f"{v:.8g}" for v in row))
+    write_text(path, ET.tostring(root, encoding="unicode") + "\n")
+
+
+def read_calibration(path: str | Path) -> np.ndarray:
+    path = Path(path)
+    try:
+        root = ET.parse(path).getroot()
+    except FileNotFoundError:
+        raise InputError(path, "missing: the session needs the Nano17 calibration file") from None
+    except ET.ParseError as exc:
+        raise InputError(path, f"not valid calibration XML: {exc}") from None
+    rows = {ax.get("Name"): ax.get("values", "") for ax in root.iter("UserAxis")}
+    if set(AXES) - set(rows):
+        raise InputError(path, f"UserAxis rows missing: {sorted(set(AXES) - set(rows))}")
+    names = [ax.get("Name") for ax in root.iter("UserAxis")]
+    twice = sorted({n for n in names if names.count(n) > 1 and n in AXES})
+    if twice:
+        raise InputError(path, f"UserAxis rows given more than once: {twice}")
+    values = {}
+    for a in AXES:
+        try:
+            values[a] = [float(v) for v in rows[a].split()]
+        except ValueError as exc:
+            raise InputError(path, f"non-numeric calibration value: {exc}", f"UserAxis {a}") from None
+        if len(values[a]) != 6:
+            raise InputError(path, f"calibration rows need 6 values, got {len(values[a])}", f"UserAxis {a}")
+    matrix = np.array([values[a] for a in AXES])
+    if not np.isfinite(matrix).all():
+        a = AXES[int(np.argmax(~np.isfinite(matrix).all(axis=1)))]
+        raise InputError(path, "calibration values must be finite numbers", f"UserAxis {a}")
+    return matrix
+
+
+def counts_to_volts(counts: np.ndarray) -> np.ndarray:
+    return np.asarray(counts, np.float64) * (ADC_VOLTS / ADC_COUNTS) - ADC_ZERO_V

@@ -1,0 +1,134 @@
+"""The Arduino's serial log of the Nano17 (format in tool/formats/native_layout.py), parsed with counted drops.
+
+Serial links garble lines: a partial first line when the port opens, a truncated last line when
+logging stops, the odd corrupted byte. Such lines are dropped and counted (reported in the QC
+report); a log where more than ``max_drop_fraction`` of the lines are bad, or whose Arduino clock
+jumps backwards (a reset mid-trial, after which no single offset aligns the clocks), is an error.
+
+A sample with any gauge channel at the 10-bit ADC rails (count 0 or ADC_COUNTS) is saturated: the
+force was beyond the Nano17's range and calibrates to a clipped, too small value. Such samples are
+dropped with the reason "ADC saturated" and counted (``SerialLog.saturated``), never passed on as a
+force; they are well-formed lines, so they do not count towards ``max_drop_fraction``. A log whose
+every sample is saturated (a gauge stuck at a rail: overload or a broken wire) is an error.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from tactilepipe.core.errors import InputError
+from tactilepipe.tool.formats.native_layout import ADC_COUNTS, SERIAL_HEADER
+
+N_CHANNELS = 6
+MAX_ARDUINO_MS = 2**32 - 1           # millis() is an unsigned 32-bit counter
+MAX_HOST_NS = 2**62                  # host clock in ns since 1970: far beyond any real date
+_INT = re.compile(r"^-?[0-9]+$")     # plain decimal integers only (int() would take "1_0", "+1", " 1")
+_GARBAGE = re.compile(r"[^\x20-\x7e\t\r]")   # non-ASCII (decoded as U+FFFD) and control bytes
+SATURATED = "ADC saturated"          # drop reason of a sample with a gauge channel at the ADC rails
+
+
+@dataclass
+class SerialLog:
+    start_host_ns: int
+    arduino_ms: np.ndarray          # (n,) int64
+    counts: np.ndarray              # (n, 6) ADC counts
+    line_numbers: np.ndarray        # (n,) 1-based line of each kept sample, for error messages
+    drops: Counter = field(default_factory=Counter)
+
+    @property
+    def saturated(self) -> int:
+        """Samples dropped because a gauge channel sat at the ADC rails (0 or ADC_COUNTS)."""
+        return self.drops[SATURATED]
+
+
+def at_adc_rails(counts: np.ndarray) -> np.ndarray:
+    """(n,) True where any gauge channel of a sample reads 0 or ADC_COUNTS (saturated)."""
+    counts = np.asarray(counts)
+    return ((counts <= 0) | (counts >= ADC_COUNTS)).any(axis=1)
+
+
+def _parse_line(text: str) -> tuple[int, list[int]] | str:
+    """(arduino_ms, counts) or the reason the line is dropped."""
+    if not text.strip():
+        return "empty line"
+    parts = [p.strip() for p in text.strip().split(",")]
+    if len(parts) != 1 + N_CHANNELS:
+        return "wrong column count"
+    if not all(_INT.match(p) for p in parts):
+        return "non-numeric field"
+    values = [int(p) for p in parts]
+    if values[0] < 0:
+        return "negative time"
+    if values[0] > MAX_ARDUINO_MS:
+        return "time out of range"
+    if any(not 0 <= v <= ADC_COUNTS for v in values[1:]):
+        return "ADC count out of range"
+    return values[0], values[1:]
+
+
+def read_serial_log(path: str | Path, max_drop_fraction: float = 0.2) -> SerialLog:
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(path, "missing: every trial needs the Arduino's force.log") from None
+    # lines end at b"\n" only (str.splitlines would also split at stray \x0b, \x1c... bytes,
+    # and the line numbers in messages would no longer be an editor's)
+    lines = [ln.decode("ascii", errors="replace").removesuffix("\r") for ln in data.split(b"\n")]
+    if lines and lines[-1] == "":
+        lines.pop()
+    if not lines:
+        raise InputError(path, "serial log is empty")
+    header = SERIAL_HEADER.match(lines[0])
+    if not header:
+        raise InputError(path, "first line must be '# start_host_ns=<int>'", "line 1")
+    if int(header.group(1)) > MAX_HOST_NS:
+        raise InputError(path, f"start_host_ns={header.group(1)} is out of range (ns since 1970)", "line 1")
+    times, counts, numbers, drops = [], [], [], Counter()
+    ends_clean = data.endswith(b"\n")
+    for number, text in enumerate(lines[1:], start=2):
+        if _GARBAGE.search(text):
+            drops["garbage bytes"] += 1
+            continue
+        parsed = _parse_line(text)
+        if isinstance(parsed, str):
+            is_last = number == len(lines)
+            drops["truncated last line" if is_last and not ends_clean else parsed] += 1
+            continue
+        times.append(parsed[0])
+        counts.append(parsed[1])
+        numbers.append(number)
+    total = len(lines) - 1
+    if not times:
+        raise InputError(path, f"no valid samples in {total} lines ({dict(drops)})")
+    if sum(drops.values()) > max_drop_fraction * total:
+        raise InputError(path, f"{sum(drops.values())} of {total} lines are unreadable ({dict(drops)}); "
+                               f"more than {max_drop_fraction:.0%} means the link or the format is wrong")
+    t = np.asarray(times, np.int64)
+    c = np.asarray(counts, np.int64).reshape(-1, N_CHANNELS)
+    numbers = np.asarray(numbers)
+    steps = np.diff(t)
+    if (steps < 0).any():
+        k = int(np.argmax(steps < 0)) + 1
+        raise InputError(path, f"Arduino clock jumps back from {t[k - 1]} to {t[k]} ms (a reset mid-trial?)",
+                         f"line {numbers[k]}")
+    if (steps == 0).any():
+        k = int(np.argmax(steps == 0)) + 1
+        raise InputError(path, f"duplicated Arduino timestamp {t[k]} ms", f"line {numbers[k]}")
+    # the clock checks above include saturated samples (their times are valid); their forces are not
+    saturated = at_adc_rails(c)
+    if saturated.all():
+        stuck = [ch for ch in range(N_CHANNELS) if at_adc_rails(c[:, [ch]]).all()]
+        raise InputError(path, f"all {len(t)} samples have a gauge channel at the ADC rails (count 0 or "
+                               f"{ADC_COUNTS}{f'; channel(s) {stuck} in every one' if stuck else ''}): "
+                               f"the Nano17 is overloaded or a gauge is disconnected")
+    if saturated.any():
+        drops[SATURATED] += int(saturated.sum())
+        keep = ~saturated
+        t, c, numbers = t[keep], c[keep], numbers[keep]
+    return SerialLog(int(header.group(1)), t, c, numbers, drops)

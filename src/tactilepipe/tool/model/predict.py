@@ -1,0 +1,103 @@
+"""`tactilepipe predict`: stream a recorded trial through a trained model, pair by pair.
+
+Each frame pair is preprocessed exactly as for training (tool/ingest.preprocess at the ingest size,
+then the loader's area downscale to the model's input size), stacked with
+the trial's first pair as the zero-force reference, and run at batch 1; the prediction and the
+latency (preprocessing + model) are printed per pair, then a summary with the sustained rate.
+
+Threads (params.yaml ``predict``): batch-1 inference of a small model is latency-bound, and on a
+CPU shared with other jobs a thread per core spinning between ops loses its core to them at
+every op; one passive thread keeps the DIGIT rate where two spinning ones collapsed
+(benchmarks/bench_predict_load.py).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from tactilepipe.tool.formats.trials import open_trial
+from tactilepipe.tool.data.ingest import preprocess
+from tactilepipe.tool.data.sync import pair_frames
+
+
+def stream_predictions(checkpoint: Path, trial: Path, fmt: str, p: dict, limit: int | None = None,
+                       out=sys.stdout, label_range=None) -> dict:
+    """A checkpoint of the public code (best_model_*.pth) runs at the ingest size; its normal-force
+    outputs need ``label_range`` (min, max in N), which it does not record."""
+    # OpenMP reads its wait policy when torch first loads it: effective when predict starts the
+    # process (the CLI), not when torch was already imported by the caller
+    os.environ["OMP_WAIT_POLICY"] = p["predict"]["wait_policy"].upper()
+    import torch
+    from tactilepipe.tool.model.train import load_model
+    saved_threads = torch.get_num_threads()
+    torch.set_num_threads(p["predict"]["num_threads"])
+    try:
+        model, meta = load_model(checkpoint, image_size=p["tool_ingest"]["image_size"])
+        if meta["label_stats"] is None:                # a public-code checkpoint
+            meta = {**meta, "label_stats": _public_label_stats(checkpoint, meta, label_range)}
+        return _stream(model, meta, trial, fmt, p, limit, out, torch)
+    finally:
+        torch.set_num_threads(saved_threads)       # an in-process caller keeps its own setting
+
+
+def _public_label_stats(checkpoint: Path, meta: dict, label_range) -> dict:
+    from tactilepipe.core.errors import InputError
+    if meta["head"] == "shear":
+        return {"min": 0.0, "max": 1.0}                 # its shear head predicts N
+    if label_range is None:
+        raise InputError(checkpoint, "a public-code normal-force checkpoint predicts force scaled to its data set's "
+                                     "range: give it with --label-range MIN_N MAX_N")
+    return {"min": float(label_range[0]), "max": float(label_range[1])}
+
+
+def _stream(model, meta, trial, fmt, p, limit, out, torch) -> dict:
+    from tactilepipe.tool.model.train import denormalise
+    model.eval()
+    size = meta["image_size"]
+    raw = open_trial(trial, fmt, p["tool_ingest"]["ros_topics"])
+    left, right = raw.frames["digit_left"], raw.frames["digit_right"]
+    period = float(np.median(np.diff(left.host_ns))) if len(left) > 1 else 1e9 / 30
+    il, ir = pair_frames(left.host_ns, right.host_ns, int(period / 2))
+    if limit:
+        il, ir = il[:limit], ir[:limit]
+
+    ingest_size = p["tool_ingest"]["image_size"]
+
+    def prep_image(bgr):
+        # the training path exactly: ingest's preprocessing at the dataset size, then the loader's
+        # area downscale to the model's size (ToolFrames.resized)
+        img = preprocess(bgr, ingest_size)
+        return img if ingest_size == size else cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
+
+    def prep(frames, i):
+        return prep_image(frames.load(int(i)))
+
+    # the zero-force reference: the format's own (public layout: frame 0), else the first pair
+    ref = ([prep_image(raw.reference["digit_left"]), prep_image(raw.reference["digit_right"])]
+           if {"digit_left", "digit_right"} <= set(raw.reference) else [prep(left, il[0]), prep(right, ir[0])])
+    latencies, preds = [], []
+    print("pair,t_s,prediction_n,latency_ms", file=out)
+    t_start = time.perf_counter()
+    with torch.no_grad():
+        for k, (i, j) in enumerate(zip(il, ir)):
+            t0 = time.perf_counter()
+            x = np.stack([prep(left, i), ref[0], prep(right, j), ref[1]])[None].astype(np.float32) / 255.0
+            y = model(torch.from_numpy(x)).reshape(-1).numpy()
+            pred = float(np.asarray(denormalise(y, meta["label_stats"], meta["normalise"])).reshape(-1)[0])
+            latencies.append((time.perf_counter() - t0) * 1000)
+            preds.append(pred)
+            t_s = (left.host_ns[i] - left.host_ns[il[0]]) / 1e9
+            print(f"{k},{t_s:.3f},{pred:.3f},{latencies[-1]:.2f}", file=out)
+    wall = time.perf_counter() - t_start
+    summary = {"pairs": len(preds), "median_latency_ms": float(np.median(latencies)),
+               "sustained_pairs_per_s": len(preds) / wall}
+    print(f"# {summary['pairs']} frame pairs, median latency {summary['median_latency_ms']:.1f} ms, "
+          f"sustained {summary['sustained_pairs_per_s']:.1f} pairs/s (decode + preprocess + model)", file=out)
+    return summary
+

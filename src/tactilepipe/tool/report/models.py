@@ -1,0 +1,226 @@
+"""Tool scene results: metrics.json, tables and the model figures, from the trained runs.
+
+Runs live in results/<scene>/models/<run>/ (eval.json, predictions.parquet); their names are
+explained in ``pipeline/runs.py``. Repeat 0 of the default split is the one the per-run figures and
+the ``variants`` table draw; every score is also reported over all repeats (mean, std, 95 %
+interval), with paired differences between variants and each variant's verdict against the
+baselines that have its information (``evaluate.LIKE_FOR_LIKE``).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from tactilepipe.core.atomic import write_json
+from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.core.intervals import interval
+from tactilepipe.core.tables import write_table
+from tactilepipe.tool.report import figures_models as fm
+from tactilepipe.tool.report import verdicts
+from tactilepipe.tool.model.evaluate import (BASELINES, LIKE_FOR_LIKE, baselines, evaluate, rest_frame_rmse_features,
+                                       tactile_rmse_features)
+from tactilepipe.tool.data.loader import ToolFrames
+from tactilepipe.pipeline.runs import run_spec, sweep_run_name
+from tactilepipe.tool.data.splits import parse_split_name
+
+SPLIT_0_KEYS = ("mae", "rmse", "r2", "slope", "intercept", "parameters", "epochs", "depth", "image_size")
+
+
+@dataclass
+class RunPlan:
+    repeats: dict[str, list[str]] = field(default_factory=dict)    # variant -> run of each repeat, repeat 0 first
+    loto: dict[str, str] = field(default_factory=dict)             # held-out tool -> run
+    sweep: list[str] = field(default_factory=list)
+
+
+def plan_runs(tool_train: dict, runs: list[str]) -> RunPlan:
+    """Which role each run plays; every variant must have the same repeats 0..K-1."""
+    plan, by_repeat = RunPlan(), {}
+    sweep = {sweep_run_name(s) for s in tool_train["sweep"]}
+    for run in runs:
+        variant, split, _depth, _size = run_spec(tool_train, run)
+        kind, repeat, tool = parse_split_name(split)
+        if run in sweep:
+            plan.sweep.append(run)
+        elif kind == "loto":
+            plan.loto[tool] = run
+        else:
+            by_repeat.setdefault(variant, {})[repeat] = run
+    for v in tool_train["variants"]:
+        reps = by_repeat.get(v, {})
+        if sorted(reps) != list(range(len(reps))) or not reps:
+            raise TactilepipeError(f"tool report: variant {v} has runs for repeats {sorted(reps)}; "
+                                   "every variant needs repeats 0..K-1")
+        plan.repeats[v] = [reps[k] for k in range(len(reps))]
+    counts = {len(r) for r in plan.repeats.values()}
+    if len(counts) != 1:
+        raise TactilepipeError(f"tool report: variants have different numbers of repeats "
+                               f"({ {v: len(r) for v, r in plan.repeats.items()} })")
+    return plan
+
+
+def _load(run_dir: Path) -> tuple[dict, pd.DataFrame]:
+    return json.loads((run_dir / "eval.json").read_text()), pd.read_parquet(run_dir / "predictions.parquet")
+
+
+def _test_table(data: ToolFrames, test: np.ndarray, pred: np.ndarray) -> pd.DataFrame:
+    s = data.samples.iloc[test]
+    return pd.DataFrame({"trial": s["trial"].to_numpy(), "tool": s["tool"].to_numpy(), "t_s": s["t_s"].to_numpy(),
+                         "true": data.labels[test].astype(float), "pred": np.asarray(pred, float)})
+
+
+def baseline_draws(data: ToolFrames, splits: list[dict]) -> list[dict[str, dict]]:
+    """Per split: every baseline refitted on its training rows and evaluated on its test rows."""
+    rmse_feats = tactile_rmse_features(data.frames, data.references, data.trial_index)
+    out = []
+    for split in splits:
+        rest = rest_frame_rmse_features(data.frames, data.references, data.trial_index, split["train"])
+        test = np.asarray(split["test"])
+        out.append({name: evaluate(_test_table(data, test, pred))
+                    for name, pred in baselines(data.labels, rmse_feats, rest, split).items()})
+    return out
+
+
+def build_model_report(scene_dir: Path, scene: str, tool_train: dict, runs: list[str]) -> dict:
+    label = "normal" if scene == "tool_normal" else "shear"
+    models, tables, figs = scene_dir / "models", scene_dir / "tables", scene_dir / "figures"
+    plan = plan_runs(tool_train, runs)
+    variants = list(plan.repeats)
+    evals, preds = {}, {}
+    for run in runs:
+        evals[run], preds[run] = _load(models / run)
+    k_repeats = len(plan.repeats[variants[0]])
+    split_names = [evals[plan.repeats[variants[0]][k]]["split"] for k in range(k_repeats)]
+    for v in variants:
+        got = [evals[r]["split"] for r in plan.repeats[v]]
+        if got != split_names:
+            raise TactilepipeError(f"tool report: {v} was trained on splits {got}, {variants[0]} on {split_names}")
+    splits = [json.loads((scene_dir / "splits" / f"{name}.json").read_text()) for name in split_names]
+    ratio = float(np.mean([len(s["test"]) / len(s["train"]) for s in splits]))
+
+    data = ToolFrames(scene_dir / "data", label)
+    base = baseline_draws(data, splits)
+    scores = {v: {m: [evals[r][m] for r in plan.repeats[v]] for m in verdicts.METRICS} for v in variants}
+    scores |= {b: {m: [draw[b][m] for draw in base] for m in verdicts.METRICS} for b in BASELINES}
+    summary = {name: verdicts.over_draws(s, ratio) for name, s in scores.items()}
+
+    # --- metrics.json ---------------------------------------------------------------------------
+    metrics = {}
+    for v in variants:
+        e0 = evals[plan.repeats[v][0]]
+        own = [LIKE_FOR_LIKE[v], "mean_predictor"]
+        against = {b: verdicts.versus(scores[v], scores[b], ratio) for b in own}
+        metrics[v] = {k: e0[k] for k in SPLIT_0_KEYS} | {"per_split": scores[v], "over_splits": summary[v]}
+        if v != "full" and "full" in scores:
+            metrics[v]["minus_full"] = verdicts.minus(scores[v], scores["full"], ratio)
+        metrics[v] |= {"like_for_like_baseline": LIKE_FOR_LIKE[v], "versus_baselines": against,
+                       "beats_baselines": all(a["beats"] for a in against.values())}
+    metrics["baselines"] = {b: {m: base[0][b][m] for m in verdicts.METRICS} | {"per_split": scores[b],
+                                                                             "over_splits": summary[b]}
+                            for b in BASELINES}
+    rows, text = verdicts.order_by_mae({v: scores[v] for v in variants}, ratio)
+    metrics["ablation_order_by_mae"] = [r["method"] for r in rows]
+    metrics["ablation_ranking_by_mae"] = text
+    metrics["ablation_ranking_rows"] = rows
+    metrics["paper_orderings"] = verdicts.paper_orderings(scene, {v: scores[v] for v in variants}, ratio)
+    metrics["beats_baselines"] = {v: metrics[v]["beats_baselines"] for v in variants}
+    metrics["every_variant_beats_baselines"] = all(metrics["beats_baselines"].values())
+    metrics["split"] = split_names[0]
+    metrics["splits"] = split_names
+    metrics["repeats"] = k_repeats
+    metrics["test_pairs"] = int(len(splits[0]["test"]))
+    metrics["test_pairs_per_split"] = [len(s["test"]) for s in splits]
+    metrics["test_train_ratio"] = ratio
+    if plan.loto:
+        per_tool = {t: {m: evals[r][m] for m in ("mae", "rmse", "r2", "n")} for t, r in sorted(plan.loto.items())}
+        loto_splits = [json.loads((scene_dir / "splits" / f"{evals[r]['split']}.json").read_text())
+                       for r in plan.loto.values()]
+        loto_ratio = float(np.mean([len(s["test"]) / len(s["train"]) for s in loto_splits]))
+        metrics["loto"] = {"per_tool": per_tool, "over_tools": {
+            m: interval([p[m] for p in per_tool.values()], test_train_ratio=loto_ratio) for m in verdicts.METRICS}}
+    write_json(scene_dir / "metrics.json", metrics)
+
+    # --- tables ---------------------------------------------------------------------------------
+    split0_rows = []
+    for name in [*variants, *BASELINES]:
+        e = evals[plan.repeats[name][0]] if name in plan.repeats else base[0][name]
+        split0_rows.append({"model": name, "MAE (N)": e["mae"], "RMSE (N)": e["rmse"], "R²": e["r2"],
+                            "slope": e["slope"], "intercept (N)": e["intercept"], "train (s)": e.get("train_s", np.nan),
+                            "latency (ms)": e.get("latency_ms", np.nan), "parameters": e.get("parameters", 0)})
+    write_table(pd.DataFrame(split0_rows), tables / "variants",
+                f"{scene}: test set of the '{split_names[0]}' split ({len(splits[0]['test'])} frame pairs)", "{:.4f}")
+    write_table(_interval_table(summary), tables / "intervals",
+                f"{scene}: over {k_repeats} repeats of the '{split_names[0]}' split (own trials and model seed each), "
+                "mean ± std and 95 % interval (Nadeau-Bengio corrected)", "{:.3f}")
+    write_table(_differences_table(metrics, variants), tables / "differences",
+                f"{scene}: paired differences over the {k_repeats} repeats, 95 % intervals", "{:.3f}")
+    write_table(pd.DataFrame(metrics["paper_orderings"]).drop(columns=["better", "worse"]), tables / "paper_orderings",
+                f"{scene}: the study's orderings of the variants, judged on the paired MAE difference (worse − better) "
+                f"over the {k_repeats} repeats", "{:.3f}")
+    pt = pd.concat([pd.DataFrame(evals[plan.repeats[v][0]]["per_tool"]).assign(model=v) for v in variants],
+                   ignore_index=True)
+    pw = pd.concat([pd.DataFrame(evals[plan.repeats[v][0]]["per_window"]).assign(model=v) for v in variants],
+                   ignore_index=True)
+    write_table(pt[["model", "tool", "mae", "std_abs_error", "n"]], tables / "per_tool", "|error| per tool (N)", "{:.3f}")
+    write_table(pw[["model", "window", "mae", "std_abs_error", "n"]], tables / "per_window",
+                "|error| per force window (N), with frame counts", "{:.3f}")
+    every = pd.DataFrame([{"run": r, "variant": evals[r]["variant"], "split": evals[r]["split"],
+                           "depth": evals[r]["depth"], "image_size": evals[r]["image_size"], "mae": evals[r]["mae"],
+                           "r2": evals[r]["r2"], "train_s": evals[r]["train_s"], "latency_ms": evals[r]["latency_ms"],
+                           "parameters": evals[r]["parameters"]} for r in runs])
+    write_table(every, tables / "runtime", "Error against run time: every model trained (CPU)", "{:.4f}")
+    if plan.loto:
+        loto = pd.DataFrame([{"held-out tool": t, **p} for t, p in metrics["loto"]["per_tool"].items()])
+        write_table(loto, tables / "loto", "Full model, leave-one-tool-out: each tool held out in turn", "{:.3f}")
+    # run times change on every run: kept apart so a metrics diff shows what the results did
+    write_json(scene_dir / "runtime.json", {r: {"train_s": float(evals[r]["train_s"]),
+                                                "latency_ms": float(evals[r]["latency_ms"])} for r in runs})
+
+    # --- figures: the paper's Figs. 5-8 and 9 (normal) / 10 (shear), on repeat 0 ------------------
+    p0 = {v: preds[plan.repeats[v][0]] for v in variants}
+    e0 = {v: evals[plan.repeats[v][0]] for v in variants}
+    fm.sorted_predictions(p0["full"], label, figs / "sorted_predictions.png")
+    fm.over_time(p0, label, figs / "over_time.png")
+    fm.per_tool_bars({v: pd.DataFrame(e0[v]["per_tool"]) for v in variants}, figs / "per_tool.png")
+    fm.window_heatmap({v: pd.DataFrame(e0[v]["per_window"]) for v in variants}, figs / "window_heatmap.png")
+    fm.regression_grid(p0, e0, label, figs / "regression.png")
+    fm.pareto(every, figs / "error_vs_runtime.png")
+    fm.interval_bars(scores, summary, label, figs / "intervals.png")
+    if plan.loto:
+        fm.loto_bars(metrics["loto"], label, figs / "loto.png")
+    return metrics
+
+
+def _interval_table(summary: dict[str, dict]) -> pd.DataFrame:
+    rows = []
+    for name, s in summary.items():
+        row = {"model": name, "repeats": s["mae"]["n"]}
+        for m, title in (("mae", "MAE (N)"), ("rmse", "RMSE (N)"), ("r2", "R²")):
+            row[f"{title} mean"] = s[m]["mean"]
+            row[f"{title} std"] = s[m]["std"]
+            row[f"{title} 95 % low"] = s[m]["low"]
+            row[f"{title} 95 % high"] = s[m]["high"]
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def _differences_table(metrics: dict, variants: list[str]) -> pd.DataFrame:
+    """Each ablation minus full, then each variant's improvement on its baselines (MAE: baseline -
+    variant, R²: variant - baseline), with "beats" when both improvements' intervals lie above zero."""
+    rows = []
+    row = lambda comparison, metric, d, verdict: {
+        "comparison": comparison, "metric": metric, "mean": d["mean"], "95 % low": d["low"], "95 % high": d["high"],
+        "interval excludes 0": "yes" if d["excludes_zero"] else "no", "verdict": verdict}
+    for v in variants:
+        for m, d in metrics[v].get("minus_full", {}).items():
+            rows.append(row(f"{v} − full", m, d, ""))
+        for b, a in metrics[v]["versus_baselines"].items():
+            for m in ("mae", "r2"):
+                rows.append(row(f"{v} improves on {b}", m, a[f"{m}_improvement"],
+                                "beats" if a["beats"] else "not shown to beat"))
+    return pd.DataFrame(rows)
