@@ -42,10 +42,11 @@ def untrained_checkpoint(p: dict, path: Path) -> Path:
     from tactilepipe.tool.model.train import CHECKPOINT_FORMAT, TrainConfig
     tt = p["tool_train"]
     size = tt["image_size"]
-    cfg = TrainConfig(variant="full", depth=tt["depth"], image_size=size)
+    cfg = TrainConfig.from_params(tt, variant="full", depth=tt["depth"], image_size=size, normalise="minmax",
+                                  seed=p["seed"])
     meta = {"variant": "full", "depth": tt["depth"], "image_size": size, "normalise": "minmax",
             "label_stats": {"min": 0.0, "max": 30.0, "mean": 5.0, "std": 5.0}}
-    torch.save({"format": CHECKPOINT_FORMAT, "model": build_model("full", tt["depth"], size).state_dict(),
+    torch.save({"format": CHECKPOINT_FORMAT, "model": build_model("full", tt["depth"], size, tt["gam_channel_gate"]).state_dict(),
                 "config": dataclasses.asdict(cfg), "meta": meta}, path)
     return path
 

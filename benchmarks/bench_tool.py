@@ -31,7 +31,7 @@ from tactilepipe.tool.data.dataset import build_tool_dataset
 from tactilepipe.tool.data.ingest import ingest_trial
 from tactilepipe.tool.data.loader import ToolFrames
 from tactilepipe.tool.formats.native_import import read_native_trial
-from tactilepipe.tool.model.predict import stream_predictions
+from tactilepipe.tool.model.stream import stream_predictions
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -40,6 +40,21 @@ def row(name: str, seconds: float, count: int, unit: str) -> float:
     rate = count / seconds
     print(f"{name:<58}{seconds:>9.2f}{rate:>12,.0f} {unit}")
     return rate
+
+
+def render_fps(params: dict, n_frames: int = 300) -> float:
+    """Rendered QVGA frames per second on one core (height field, shear, shading, noise; no PNG)."""
+    trial = tsim.Trial(tsim.session_plan(params)[0], params)
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        trial.frame(0, 0)
+        t = time.perf_counter()
+        for i in range(n_frames):
+            trial.frame(i % 2, i % trial.n_frames)
+        return n_frames / (time.perf_counter() - t)
+    finally:
+        cv2.setNumThreads(threads)
 
 
 def main() -> None:
@@ -51,7 +66,7 @@ def main() -> None:
     p = load_params(REPO / "params.yaml", {"scale": "default"})
 
     print("\n== Simulator (one core)")
-    fps = tsim.benchmark_render(300)
+    fps = render_fps(p, 300)
     print(f"rendered QVGA frames/s: {fps:,.0f}  (target >= 200: {'met' if fps >= 200 else 'NOT met'})")
 
     with tempfile.TemporaryDirectory(prefix="tactilepipe-bench-tool-") as tmp:
@@ -134,8 +149,9 @@ def _untrained_checkpoint(p: dict, path: Path) -> Path:
     from tactilepipe.tool.model.network import build_model
     from tactilepipe.tool.model.train import CHECKPOINT_FORMAT, TrainConfig
     tt, size = p["tool_train"], p["tool_ingest"]["image_size"]
-    cfg = TrainConfig(variant="full", depth=tt["depth"], image_size=size)
-    model = build_model("full", tt["depth"], size)
+    cfg = TrainConfig.from_params(tt, variant="full", depth=tt["depth"], image_size=size, normalise="minmax",
+                                  seed=p["seed"])
+    model = build_model("full", tt["depth"], size, tt["gam_channel_gate"])
     meta = {"variant": "full", "depth": tt["depth"], "image_size": size, "normalise": "minmax",
             "label_stats": {"min": 0.0, "max": 30.0, "mean": 5.0, "std": 5.0}}
     torch.save({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "config": dataclasses.asdict(cfg),

@@ -90,9 +90,9 @@ def test_a_wrong_resource_key_stops_with_its_name(tmp_path):
 # ----------------------------------------------------------------------------- compute estimate
 
 def test_forward_flops_follow_the_image_area():
-    f112, f224 = forward_flops("full", 101, 112), forward_flops("full", 101, 224)
+    f112, f224 = forward_flops("full", 101, 112, "sigmoid"), forward_flops("full", 101, 224, "sigmoid")
     assert 3.6 < f224 / f112 < 4.4                 # convolutions: cost grows with the image area
-    assert forward_flops("single", 101, 224) < f224  # one finger's encoder and GAM less
+    assert forward_flops("single", 101, 224, "sigmoid") < f224  # one finger's encoder and GAM less
 
 
 def test_estimate_report_counts_jobs_and_models_training():
@@ -191,8 +191,9 @@ def test_mixed_precision_only_on_cuda(tiny_data, tmp_path, monkeypatch):
         return real(device_type, *args, **kwargs)
 
     monkeypatch.setattr(train_mod.torch, "autocast", spy)
-    cfg = train_mod.TrainConfig(variant="full", depth=18, image_size=32, batch_size=8, max_epochs=1, patience=None,
-                                seed=1, num_threads=2, device="cpu", amp=True, max_train_batches_per_epoch=1)
+    from support.tool_data import quick_cfg
+    cfg = quick_cfg(image_size=32, batch_size=8, max_epochs=1, seed=1, device="cpu", amp=True,
+                    max_train_batches_per_epoch=1)
     summary = train_mod.train(ToolFrames(root, "normal"), split, cfg, tmp_path / "cpu", progress=False)
     assert summary["device"] == "cpu"
     assert calls and all(c == ("cpu", False) for c in calls)       # amp=True is ignored on CPU

@@ -48,7 +48,7 @@ def stand_ins(tmp_path_factory) -> dict:
     weights of the full model, depth 18, under the public key names); the simulator's trials.csv."""
     from tactilepipe.tool.model.public_weights import to_public
     from tactilepipe.tool.model.network import build_model
-    from tactilepipe.tool.sim import simulate_public_session
+    from support.tool_sim import simulate_public_session
     root = tmp_path_factory.mktemp("study000_sim")
     params = load_params(REPO / "params.yaml", {"scale": "smoke"})
     names = simulate_public_session(root / "sim", params)

@@ -5,13 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from support import tool_sim
 from tactilepipe.core.config import REPO_ROOT, load_params
 from tactilepipe.tool import sim as ts
 from tactilepipe.tool.data.dataset import build_tool_dataset
 from tactilepipe.tool.formats.trials import list_trials, open_trial
 from tactilepipe.tool.data.ingest import ingest_trial
 from tactilepipe.tool.data.loader import ToolFrames
-from tactilepipe.tool.formats.rosbag import write_ros_trial
+from support.ros_writer import write_ros_trial
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +57,7 @@ def test_synced_labels_match_the_force_at_exposure(native_session, params, tmp_p
 
 def test_public_layout_runs_through_the_same_ingest(params, tmp_path):
     root = tmp_path / "public"
-    names = ts.simulate_public_session(root, params, n_trials=4)
+    names = tool_sim.simulate_public_session(root, params, n_trials=4)
     trials = list_trials(root)
     assert {fmt for _, _, fmt in trials} == {"public"} and len(trials) == len(names)
     shards = []

@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 import yaml
 
+from support import ros_writer
 from tactilepipe.papillarray import messages as pa
 from tactilepipe.core.config import load_params
 from tactilepipe.core.errors import ConfigError, InputError
@@ -49,7 +50,7 @@ def goods(tmp_path_factory, sim_lifts) -> dict:
     root = tmp_path_factory.mktemp("good")
     g = {"native": make_native_session(root), "public": make_public_session(root), "bag": sim_lifts[1]["bag"],
          "shard": sim_lifts[1]["shard"]}
-    for fmt in ri.FORMATS:
+    for fmt in ros_writer.FORMATS:
         g[fmt] = write_ros(root / fmt / ("trial.bag" if fmt == "ros1" else "trial"), fmt)
     return g
 
@@ -75,7 +76,7 @@ class Ctx:
         dst = self.tmp / "in" / src.name
         dst.parent.mkdir(parents=True, exist_ok=True)
         (shutil.copytree if src.is_dir() else shutil.copy)(src, dst)
-        if key in ri.FORMATS:
+        if key in ros_writer.FORMATS:
             shutil.copy(ri.sidecar_path(src), ri.sidecar_path(dst))
         return dst
 
@@ -269,7 +270,7 @@ def _(c):
 
 # Tool trials as ROS1 / ROS2 sqlite3 / ROS2 mcap bags -> rosbag_import + ingest
 
-for _fmt in ri.FORMATS:
+for _fmt in ros_writer.FORMATS:
     @case(f"{_fmt}_tool/truncated")
     def _(c, fmt=_fmt):
         bag = c.copy(fmt); truncate(ros_storage(bag), 0.6)

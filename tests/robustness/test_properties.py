@@ -3,7 +3,6 @@ parse or the reader's own error, never another exception"."""
 
 from __future__ import annotations
 
-import json
 import tempfile
 from pathlib import Path
 

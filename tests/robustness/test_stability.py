@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from support import tool_sim
 from tactilepipe.papillarray import physics
 from tactilepipe.core.errors import ConfigError, InputError, TactilepipeError
 from tactilepipe.core.metrics import (R2_CONSTANT, R2_EMPTY, R2_NONFINITE, format_metric, r2_detail,
@@ -151,7 +152,6 @@ def test_very_stiff_pillars_carry_the_load_exactly(quiet):
     hold = _hold(rec)
     np.testing.assert_allclose(f[hold][..., 2].sum(axis=2), quiet["grip_force_n"], rtol=1e-5)
     shear = np.hypot(f[hold][..., 0].sum(axis=2), f[hold][..., 1].sum(axis=2)).sum(axis=1)
-    t, ph = rec["t"][hold], rec["phases"]
     np.testing.assert_allclose(shear, (quiet["container_mass_g"] + 300) / 1000 * G, rtol=1e-4)
 
 
@@ -304,7 +304,7 @@ def test_nano17_beyond_range_clips_at_the_adc_rails(smoke_params):
     from tactilepipe.tool import sim as tsim
     p = copy.deepcopy(smoke_params)
     p["simulate_tool"]["press"]["peak_force_n"] = [80.0, 120.0]     # beyond +-33.6 N of the 10-bit span
-    trial = tsim._Trial(_tool_spec(p), p)
+    trial = tsim.Trial(_tool_spec(p), p)
     ser = trial.serial()
     counts = ser["counts"]
     assert counts.min() >= 0 and counts.max() <= layout.ADC_COUNTS
@@ -312,7 +312,7 @@ def test_nano17_beyond_range_clips_at_the_adc_rails(smoke_params):
     force = (layout.counts_to_volts(counts) - trial.rig["gauge_bias_v"]) @ tsim.calibration_matrix(p).T
     assert np.isfinite(force).all()
     assert np.abs(force[:, 2]).max() < np.abs(ser["wrench"][:, 2]).max()    # read as less than the truth
-    normal = tsim._Trial(_tool_spec(smoke_params), smoke_params).serial()
+    normal = tsim.Trial(_tool_spec(smoke_params), smoke_params).serial()
     assert normal["clipped"] == 0
 
 
@@ -321,7 +321,7 @@ def test_tool_ingest_reports_adc_saturation(smoke_params, tmp_path):
     from tactilepipe.tool.formats.serial_log import read_serial_log
     p = copy.deepcopy(smoke_params)
     p["simulate_tool"]["press"]["peak_force_n"] = [80.0, 120.0]
-    ser = tsim._Trial(_tool_spec(p), p).serial()
+    ser = tsim.Trial(_tool_spec(p), p).serial()
     path = tmp_path / "force.log"
     path.write_text("\n".join(ser["lines"]) + "\n")
     log = read_serial_log(path)
@@ -340,10 +340,10 @@ def test_saturated_nano17_samples_are_dropped_counted_and_shown(smoke_params, tm
     p = copy.deepcopy(smoke_params)
     p["simulate_tool"]["press"]["peak_force_n"] = [80.0, 120.0]
     spec = _tool_spec(p)
-    ser = tsim._Trial(spec, p).serial()
+    ser = tsim.Trial(spec, p).serial()
     at_rails = ((ser["counts"] == 0) | (ser["counts"] == layout.ADC_COUNTS)).any(axis=1)
     assert at_rails.sum() > 0
-    tsim.write_session(tmp_path / "raw", p, trials=[spec.name])
+    tool_sim.write_session(tmp_path / "raw", p, trials=[spec.name])
     trial = tmp_path / "raw" / spec.name
     log = read_serial_log(trial / "force.log")
     assert log.saturated == at_rails.sum() and len(log.counts) == (~at_rails).sum()
@@ -377,10 +377,9 @@ def test_a_gauge_stuck_at_a_rail_is_an_error(tmp_path):
 
 @pytest.mark.parametrize("e_star", [1.0, 1000.0])
 def test_gel_depth_saturates_at_h_max_for_heavy_presses_and_stiff_gels(smoke_params, e_star):
-    from tactilepipe.tool import sim as tsim
     p = copy.deepcopy(smoke_params)
     p["simulate_tool"]["grasp"]["e_star_mpa"] = e_star
-    out = tsim.render_at_forces(_tool_spec(p), p, normal_n=[0.0, 30.0, 3000.0])
+    out = tool_sim.render_at_forces(_tool_spec(p), p, normal_n=[0.0, 30.0, 3000.0])
     h_max = p["simulate_tool"]["render"]["h_max_mm"]
     for name, h in out["gel_height"].items():
         assert np.isfinite(h).all() and h.max() <= h_max + 1e-6, name

@@ -11,6 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from support import ros_writer
 from tactilepipe.core.config import load_params
 from tactilepipe.tool.formats import public_layout as pl
 from tactilepipe.tool.formats import rosbag as ri
@@ -83,7 +84,7 @@ def write_ros(path: Path, fmt: str, left=None, right=None, force=None) -> Path:
     stamps = START_NS + 33_333_333 * np.arange(len(left), dtype=np.int64)
     force_ns = START_NS + 16_666_667 * np.arange(2 * n, dtype=np.int64)
     force = np.zeros((2 * n, 3)) if force is None else force
-    ri.write_ros_trial(path, left, right, stamps, force_ns, force, fmt, compressed=False)
+    ros_writer.write_ros_trial(path, left, right, stamps, force_ns, force, fmt, compressed=False)
     ri.sidecar_path(path).write_text(json.dumps({"tool": "knife", "kind": "normal", "orientation_deg": 0.0,
                                                  "insertion_mm": 10.0}))
     return path

@@ -58,6 +58,8 @@ def make_split_dict(data: ToolFrames) -> dict:
 
 
 def quick_cfg(**kw) -> TrainConfig:
-    base = dict(variant="full", depth=18, image_size=S, batch_size=24, max_epochs=3, patience=None,
-                seed=7, num_threads=2, lr=2e-4)
+    """A small, fast training set-up; every field spelled out (TrainConfig has no defaults)."""
+    base = dict(variant="full", depth=18, image_size=S, lr=2e-4, lr_schedule="constant", batch_size=24, max_epochs=3,
+                patience=None, normalise="minmax", seed=7, device="auto", amp=True, num_threads=2,
+                max_train_batches_per_epoch=None, bn_recalibration_batches=20, gam_channel_gate="sigmoid")
     return TrainConfig(**{**base, **kw})

@@ -10,19 +10,20 @@ import torch
 
 from tactilepipe.core.config import load_params
 from tactilepipe.tool.model.network import build_model
-from tactilepipe.tool.model.predict import stream_predictions
-from tactilepipe.tool.model.train import CHECKPOINT_FORMAT, TrainConfig
+from tactilepipe.tool.model.stream import stream_predictions
+from tactilepipe.tool.model.train import CHECKPOINT_FORMAT
 
 from support.sessions import make_native_session
+from support.tool_data import quick_cfg
 
 
 def test_predict_streams_on_the_configured_threads_and_restores_them(tmp_path, monkeypatch):
     p = load_params()
     trial = make_native_session(tmp_path) / "t00"
-    cfg = TrainConfig(variant="full", depth=18, image_size=16)
+    cfg = quick_cfg(image_size=16)
     meta = {"variant": "full", "depth": 18, "image_size": 16, "normalise": "minmax",
             "label_stats": {"min": 0.0, "max": 30.0, "mean": 5.0, "std": 5.0}}
-    torch.save({"format": CHECKPOINT_FORMAT, "model": build_model("full", 18, 16).state_dict(),
+    torch.save({"format": CHECKPOINT_FORMAT, "model": build_model("full", 18, 16, "sigmoid").state_dict(),
                 "config": dataclasses.asdict(cfg), "meta": meta}, tmp_path / "m.pt")
     seen = []
     real = torch.set_num_threads

@@ -16,7 +16,7 @@ import torch.nn.functional as F
 from tactilepipe.core.errors import InputError
 from tactilepipe.tool.model import public_weights as pw
 from tactilepipe.tool.model.network import build_model
-from tactilepipe.tool.model.train import load_model
+from tactilepipe.tool.model.inference import load_model
 
 # Computed with the model code before the gate option existed (seed 2026, 16 px; the zero-initialised
 # output layer set to a ramp so the output depends on every layer).
@@ -42,7 +42,7 @@ def _fingerprint(model) -> tuple[str, list[float]]:
 @pytest.mark.parametrize("variant,depth", sorted(BEFORE))
 def test_default_gate_builds_and_computes_as_before(variant, depth):
     torch.manual_seed(2026)
-    digest, out = _fingerprint(build_model(variant, depth, 16))
+    digest, out = _fingerprint(build_model(variant, depth, 16, "sigmoid"))
     assert digest == BEFORE[variant, depth][0]
     assert out == pytest.approx(BEFORE[variant, depth][1], rel=1e-5, abs=1e-8)
 
@@ -224,7 +224,7 @@ def test_predict_streams_a_public_checkpoint_and_asks_for_its_force_range(tmp_pa
     import numpy as np
 
     from tactilepipe.core.config import load_params
-    from tactilepipe.tool.model.predict import stream_predictions
+    from tactilepipe.tool.model.stream import stream_predictions
     from tactilepipe.tool.formats.public_layout import write_public_trial
     from support.project import REPO
     rng = np.random.default_rng(0)

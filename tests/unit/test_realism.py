@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
+from support import tool_sim
 from tactilepipe.cli import main as cli
 from tactilepipe.core.config import REPO_ROOT, deep_merge, load_params
 from tactilepipe.core.errors import InputError
@@ -33,7 +34,7 @@ def _rest_frames(params: dict, step: int = 4) -> dict:
     plan = [s for s in ts.session_plan(params) if s.kind == "normal"][::step]
     out = {}
     for spec in plan:
-        trial = ts._Trial(spec, params)
+        trial = ts.Trial(spec, params)
         for s, name in enumerate(SENSORS):
             out[f"{spec.name}_{name}"] = trial.frame(s, 0)
     return out
@@ -105,7 +106,7 @@ def test_change_statistic_against_each_subfolders_reference(tmp_path):
 
 def test_contact_changes_frames_more_than_rest_noise(default_params, tmp_path):
     spec = [s for s in ts.session_plan(default_params) if s.kind == "normal"][0]
-    out = ts.render_at_forces(spec, default_params, [0.0, 0.0, 5.0, 10.0], noise=True)
+    out = tool_sim.render_at_forces(spec, default_params, [0.0, 0.0, 5.0, 10.0], noise=True)
     for name in SENSORS:
         d = tmp_path / name
         d.mkdir()

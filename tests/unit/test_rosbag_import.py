@@ -8,8 +8,6 @@ so they do not depend on the code under test.
 from __future__ import annotations
 
 import json
-import os
-import shutil
 from pathlib import Path
 
 import cv2
@@ -17,11 +15,12 @@ import numpy as np
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
+from support import ros_writer
 from tactilepipe.core.errors import ArgumentError, InputError
 from tactilepipe.tool.formats import rosbag as ri
 from tactilepipe.tool.formats.raw import RawTrial
 
-FORMATS = ri.FORMATS
+FORMATS = ros_writer.FORMATS
 T0 = 1_767_225_600_000_000_000
 META = {"tool": "screwdriver_small", "kind": "normal", "orientation_deg": 15.0, "insertion_mm": 12.5}
 LEFT, RIGHT, WRENCH = ri.DEFAULT_TOPICS["digit_left"], ri.DEFAULT_TOPICS["digit_right"], ri.DEFAULT_TOPICS["wrench"]
@@ -58,7 +57,7 @@ def trial_data():
 
 
 def _write(path, data, fmt, compressed, **kw) -> Path:
-    return ri.write_ros_trial(path, data["left"], data["right"], data["stamps"], data["force_ns"],
+    return ros_writer.write_ros_trial(path, data["left"], data["right"], data["stamps"], data["force_ns"],
                               data["force_n"], fmt, compressed, **kw)
 
 
@@ -266,7 +265,7 @@ def test_header_stamps_not_receive_times_and_step_padding(tmp_path, fmt):
 
 def test_single_sensor_and_custom_topics(tmp_path, trial_data):
     topics = {"digit_left": "/cam/left/image/compressed", "wrench": "/ft/wrench"}
-    bag = ri.write_ros_trial(tmp_path / "one", trial_data["left"], None, trial_data["stamps"]["digit_left"],
+    bag = ros_writer.write_ros_trial(tmp_path / "one", trial_data["left"], None, trial_data["stamps"]["digit_left"],
                              trial_data["force_ns"], trial_data["force_n"], "ros2_mcap", True, topics)
     trial = ri.read_ros_trial(bag, {**META, "trial": "s1/one"}, topics)
     assert list(trial.frames) == ["digit_left"] and trial.trial == "s1/one"
@@ -277,7 +276,7 @@ def test_single_sensor_and_custom_topics(tmp_path, trial_data):
 def test_shared_frame_stamps_and_bare_storage_file(tmp_path, trial_data):
     n = 8
     stamps = T0 + 33_000_000 * np.arange(n, dtype=np.int64)
-    bag = ri.write_ros_trial(tmp_path / "t", trial_data["left"][:n], trial_data["right"], stamps,
+    bag = ros_writer.write_ros_trial(tmp_path / "t", trial_data["left"][:n], trial_data["right"], stamps,
                              trial_data["force_ns"], trial_data["force_n"], "ros2_mcap", False)
     for path in (bag, bag / "t.mcap"):                   # the directory, or the storage file alone
         trial = ri.read_ros_trial(path, META)
@@ -300,7 +299,7 @@ def test_write_rejects_bad_arguments(tmp_path, trial_data):
     with pytest.raises(ValueError, match="fmt"):
         _write(tmp_path / "x", trial_data, "ros3", False)
     with pytest.raises(ArgumentError, match=r"digit_left: 10 frames but 5 stamps \(frames_left against frame_host_ns\)"):
-        ri.write_ros_trial(tmp_path / "x.bag", trial_data["left"], None, trial_data["force_ns"],
+        ros_writer.write_ros_trial(tmp_path / "x.bag", trial_data["left"], None, trial_data["force_ns"],
                            trial_data["force_ns"], trial_data["force_n"], "ros1", False)
     assert list(tmp_path.iterdir()) == []
 

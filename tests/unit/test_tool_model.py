@@ -15,7 +15,8 @@ import torch
 from tactilepipe.core.errors import ArgumentError, TactilepipeError
 from tactilepipe.tool.data.loader import ToolFrames
 from tactilepipe.tool.model.network import DEPTHS, MIN_IMAGE_SIZE, VARIANTS, TrimmedConv2d, build_model, count_parameters
-from tactilepipe.tool.model.train import latency_ms, load_model, predict, scheduled_lr, train
+from tactilepipe.tool.model.train import scheduled_lr, train
+from tactilepipe.tool.model.inference import latency_ms, load_model, predict
 
 from support.tool_data import S, make_dataset, make_split_dict, quick_cfg
 
@@ -44,7 +45,7 @@ def test_parameter_counts_at_paper_scale():
     for variant in VARIANTS:
         for depth in DEPTHS:
             with torch.device("meta"):          # no memory, no init cost: counts only
-                counts[variant, depth] = count_parameters(build_model(variant, depth, 224))
+                counts[variant, depth] = count_parameters(build_model(variant, depth, 224, "sigmoid"))
     print("\nparameters at 224 px (M)\n" + "variant  " + "".join(f"{d:>10}" for d in DEPTHS))
     for variant in VARIANTS:
         print(f"{variant:8} " + "".join(f"{counts[variant, d] / 1e6:10.2f}" for d in DEPTHS))
@@ -59,7 +60,7 @@ def test_parameter_counts_at_paper_scale():
 @pytest.mark.parametrize("variant", list(VARIANTS))
 def test_forward_shape_at_224_depth18(variant):
     torch.manual_seed(0)
-    model = build_model(variant, 18, 224).eval()
+    model = build_model(variant, 18, 224, "sigmoid").eval()
     with torch.no_grad():
         out = model(torch.rand(1, 4, 224, 224))
     assert out.shape == (1,) and torch.isfinite(out).all()
@@ -67,27 +68,27 @@ def test_forward_shape_at_224_depth18(variant):
 
 def test_small_inputs_and_size_checks():
     for size in (MIN_IMAGE_SIZE, 32, 64):
-        model = build_model("full", 18, size)
+        model = build_model("full", 18, size, "sigmoid")
         out = model(torch.rand(2, 4, size, size))            # training mode works with 2 samples
         assert out.shape == (2,)
     with pytest.raises(ArgumentError, match="at least 8"):
-        build_model("full", 18, MIN_IMAGE_SIZE - 1)
+        build_model("full", 18, MIN_IMAGE_SIZE - 1, "sigmoid")
     with pytest.raises(ArgumentError, match=r"image_size 32\.0 must be a whole number"):
-        build_model("full", 18, 32.0)
-    model = build_model("full", 18, 32).eval()
+        build_model("full", 18, 32.0, "sigmoid")
+    model = build_model("full", 18, 32, "sigmoid").eval()
     with pytest.raises(ValueError, match="32 px"):
         model(torch.rand(1, 4, 64, 64))
     with pytest.raises(ValueError, match="4, S, S"):
         model(torch.rand(1, 2, 32, 32))
     with pytest.raises(ArgumentError, match="unknown model variant 'tiny'"):
-        build_model("tiny", 18, 32)
+        build_model("tiny", 18, 32, "sigmoid")
     with pytest.raises(ValueError, match="depth"):
-        build_model("full", 152, 32)
+        build_model("full", 152, 32, "sigmoid")
 
 
 def test_channels_last_gives_the_same_output():
     torch.manual_seed(0)
-    model = build_model("full", 18, 32).eval()
+    model = build_model("full", 18, 32, "sigmoid").eval()
     x = torch.rand(2, 4, 32, 32)
     with torch.no_grad():
         a = model(x)
@@ -138,7 +139,7 @@ def test_variants_read_only_their_channels():
     with torch.no_grad():
         for variant in VARIANTS:
             torch.manual_seed(1)
-            m = build_model(variant, 18, 32).eval()
+            m = build_model(variant, 18, 32, "sigmoid").eval()
             torch.nn.init.normal_(m.head[-1].weight)     # the untrained output layer is zero (a constant)
             out[variant] = [m(t) for t in (x, changed_ref, changed_right)]
 
@@ -155,7 +156,7 @@ def test_variants_read_only_their_channels():
 
 
 def test_no_gam_has_no_gam_parameters():
-    full, no_gam = build_model("full", 18, 32), build_model("no_gam", 18, 32)
+    full, no_gam = build_model("full", 18, 32, "sigmoid"), build_model("no_gam", 18, 32, "sigmoid")
     assert sum("gam" in n for n, _ in full.named_parameters()) > 0
     assert sum("gam" in n for n, _ in no_gam.named_parameters()) == 0
 
@@ -221,7 +222,7 @@ def test_training_lowers_validation_loss(tiny, tmp_path):
     # the same initial model, before any training step
     st = split["label_stats"]
     torch.manual_seed(cfg.seed)
-    untrained = build_model("full", 18, S).eval()
+    untrained = build_model("full", 18, S, "sigmoid").eval()
     x_val, y_val = data.arrays(split["validation"])
     with torch.no_grad():
         z = untrained(torch.from_numpy(x_val).float() / 255).numpy()

@@ -10,8 +10,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-import yaml
 
+from support import tool_sim
 from tactilepipe.core.config import REPO_ROOT, deep_merge, load_params
 from tactilepipe.core.errors import ConfigError, InputError
 from tactilepipe.tool.sim import render as dr
@@ -69,7 +69,7 @@ def _files(root: Path) -> dict[str, bytes]:
 
 
 def _spec_for(params: dict, tool: str, pose: int, kind: str = "normal") -> ts.TrialSpec:
-    p = ts._group(params)["poses"][pose]
+    p = ts.plan.sim_group(params)["poses"][pose]
     return ts.TrialSpec(f"{tool}_p{pose:02d}_{kind}00", tool, kind, p["orientation_deg"], p["insertion_mm"], pose)
 
 
@@ -206,8 +206,8 @@ def test_force_log_parses_back_to_the_true_force(normal_spec, params, tmp_path):
     assert np.median(np.abs(wrench[:, 2] - at_stamp)) <= bound[2]
     assert truth[:, 2].min() < -1.0 and truth[:, 2].max() <= 0       # a press reads Fz < 0 (ATI frame)
     inverted = {**params, "simulate_tool": deep_merge(params["simulate_tool"], {"nano17": {"mount": "inverted"}})}
-    flipped = ts.trial_mechanics(normal_spec, inverted)["frame_wrench"]["digit_left"]
-    upright = ts.trial_mechanics(normal_spec, params)["frame_wrench"]["digit_left"]
+    flipped = tool_sim.trial_mechanics(normal_spec, inverted)["frame_wrench"]["digit_left"]
+    upright = tool_sim.trial_mechanics(normal_spec, params)["frame_wrench"]["digit_left"]
     np.testing.assert_allclose(flipped[:, [0, 2]], upright[:, [0, 2]] * [1, -1])
     # with the rig's noise and jitter, still about one count on Fz
     noisy = ts.simulate_trial(normal_spec, params)
@@ -222,7 +222,7 @@ def test_imprint_grows_monotonically_with_tip_force(params, default_params):
     forces = [0, 2, 5, 10, 15, 20, 25, 30]
     for spec in (ts.session_plan(params)[0], _spec_for(default_params, "screwdriver_2", 1),
                  _spec_for(default_params, "spatula", 2)):
-        out = ts.render_at_forces(spec, default_params, forces)
+        out = tool_sim.render_at_forces(spec, default_params, forces)
         for sensor in layout.SENSORS:
             change = _contact_change(out, sensor)
             assert change[0] == 0 and (np.diff(change) > 0).all(), (spec.name, sensor, change)
@@ -233,7 +233,7 @@ def test_the_two_fingers_differ_and_the_difference_depends_on_the_pose(default_p
     asym = {}
     for pose in (0, 1, 2):
         spec = _spec_for(default_params, "screwdriver_1", pose)
-        out = ts.render_at_forces(spec, default_params, [0.0, 20.0])
+        out = tool_sim.render_at_forces(spec, default_params, [0.0, 20.0])
         depth = out["pads"]["depth"][1]                               # (2 pads, samples) mm at 20 N
         assert np.abs(depth[0] - depth[1]).max() > 0.2                 # centre-of-pressure shifts differ
         shear = out["pads"]["dz"][1]
@@ -267,7 +267,7 @@ def test_imprint_depth_saturates_near_h_max(default_params):
 
 
 def test_reference_frame_already_shows_the_grasp(params, normal_spec):
-    out = ts.render_at_forces(normal_spec, params, [0.0])
+    out = tool_sim.render_at_forces(normal_spec, params, [0.0])
     for pad, sensor in enumerate(layout.SENSORS):
         ref = out[sensor][0].astype(np.int16)
         blank = out["no_grasp"][sensor].astype(np.int16)
@@ -278,7 +278,7 @@ def test_reference_frame_already_shows_the_grasp(params, normal_spec):
     # a lighter tool shears the gel less in the reference frame
     light = {**params, "simulate_tool": deep_merge(params["simulate_tool"],
                                                    {"tools": {normal_spec.tool: {"mass_g": 1.0}}})}
-    out_light = ts.render_at_forces(normal_spec, light, [0.0])
+    out_light = tool_sim.render_at_forces(normal_spec, light, [0.0])
     assert abs(out_light["pads"]["dz"][0].mean()) < abs(out["pads"]["dz"][0].mean()) / 5
 
 
@@ -302,7 +302,7 @@ def test_frames_look_like_a_digit(sim_normal):
 def test_normal_trials_keep_the_pads_stuck_and_forces_skewed(default_params):
     forces = []
     for spec in ts.session_plan(default_params):
-        mech = ts.trial_mechanics(spec, default_params)
+        mech = tool_sim.trial_mechanics(spec, default_params)
         if spec.kind == "normal":
             assert mech["max_traction_ratio"] < 1.0, spec.name
             fz = -mech["frame_wrench"]["digit_left"][:, 2]          # upright mount: press = -Fz
@@ -316,7 +316,7 @@ def test_normal_trials_keep_the_pads_stuck_and_forces_skewed(default_params):
 
 def test_shear_trials_slide_the_tip_under_load(params):
     spec = next(s for s in ts.session_plan(params) if s.kind == "shear")
-    mech = ts.trial_mechanics(spec, params)
+    mech = tool_sim.trial_mechanics(spec, params)
     w = mech["frame_wrench"]["digit_left"]
     fs, fn = np.hypot(w[:, 0], w[:, 1]), -w[:, 2]
     assert fs.max() > 1.0 and fn.max() > 2.0
@@ -329,7 +329,7 @@ def test_sliding_tip_is_pinned_by_static_friction_when_it_stands_still(default_p
     """Loaded but not moving (before the first stroke, between strokes), the tip's reaction is the
     static pin of a press; sliding fast, it is kinetic friction against the velocity."""
     spec = next(s for s in ts.session_plan(default_params) if s.kind == "shear")
-    trial = ts._Trial(spec, default_params, noise=False)
+    trial = ts.Trial(spec, default_params, noise=False)
     tau = np.linspace(0, trial.duration, 2000)
     reaction = trial.reaction(tau)
     _, vel = trial.profile.tip_motion(tau)
@@ -346,12 +346,6 @@ def test_sliding_tip_is_pinned_by_static_friction_when_it_stands_still(default_p
     along = -(lat * vel[fast]).sum(axis=1) / speed[fast]                 # friction opposes the motion
     np.testing.assert_allclose(along, trial.mu_tip * normal[fast], rtol=0.01)
     assert (np.hypot(*reaction[:, :2].T) <= trial.mu_tip * normal + 1e-9).all()
-
-
-def test_benchmark_render_speed(params):
-    fps = ts.benchmark_render(200, params)
-    print(f"\nDIGIT render: {fps:.0f} QVGA frames/s per core")
-    assert fps > 0
 
 
 # --- public dataset layout ----------------------------------------------------------------------
@@ -396,7 +390,7 @@ def test_public_layout_round_trip_shear(tmp_path):
 
 
 def test_simulated_public_session_reads_back(tmp_path, params):
-    names = ts.simulate_public_session(tmp_path, params, n_trials=2)
+    names = tool_sim.simulate_public_session(tmp_path, params, n_trials=2)
     assert names == ["screwdriver_1_p00_normal00", "screwdriver_1_p00_shear00"]
     n = params["simulate_tool"]["frames_per_trial"] // params["simulate_tool"]["public"]["frame_stride"]
     normal = pl.read_public_trial(tmp_path / "data_normal" / names[0], "normal")
@@ -409,7 +403,7 @@ def test_simulated_public_session_reads_back(tmp_path, params):
     assert normal["reference_left"].shape == (layout.FRAME_H, layout.FRAME_W, 3)   # frame 0, even if dropped
     # the same seed writes the same dataset
     again = tmp_path / "again"
-    ts.simulate_public_session(again, params, n_trials=1)
+    tool_sim.simulate_public_session(again, params, n_trials=1)
     a, b = tmp_path / "data_normal" / names[0], again / "data_normal" / names[0]
     assert _files(a) == _files(b)
 
@@ -466,7 +460,7 @@ def test_sliding_strokes_go_back_and_forth_along_the_axis(default_params):
     spread = slide["stroke_spread_deg"]
     counts = []
     for spec in [s for s in ts.session_plan(default_params) if s.kind == "shear"][:12]:
-        strokes = ts._Trial(spec, default_params, noise=False).profile.strokes
+        strokes = ts.Trial(spec, default_params, noise=False).profile.strokes
         counts.append(len(strokes))
         deltas = np.array([d for _, _, d in strokes])
         ang = np.rad2deg(np.arctan2(deltas[:, 1], deltas[:, 0])) - slide["stroke_axis_deg"]

@@ -281,7 +281,7 @@ def tool_clock_figures():
 
 def tool_split_names(scene):
     """Every split file of a tool scene: each repeat of the drawn splits, one per held-out tool, lopo."""
-    kind = TOOL_TARGETS[scene][0]
+    kind = run_names.scene_label(scene)
     return [split_name(k, r) for k in ("frame", "trial") for r in range(P["tool_split"]["repeats"])] + \
         [f"loto_{t}" for t in tool_names(kind)] + ["lopo"]
 

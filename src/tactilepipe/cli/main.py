@@ -7,6 +7,7 @@ import sys
 
 from tactilepipe.cli import drift, study000, tool, volume
 from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.pipeline.runs import TOOL_SCENES
 
 
 def cmd_simulate(args) -> None:
@@ -38,7 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_simulate)
 
     s = sub.add_parser("report", parents=[common, provenance], help="metrics.json, tables and figures of a scene")
-    s.add_argument("what", choices=["volume", "drift", "tool_normal", "tool_shear"])
+    s.add_argument("what", choices=["volume", "drift", *TOOL_SCENES])
     s.add_argument("--in-dir", required=True, help="the scene's results folder")
     s.add_argument("--raw-root", default="raw/volume")
     s.add_argument("--shard-root", default="results/volume/shards")

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from tactilepipe.cli.common import stage_params
+from tactilepipe.pipeline.runs import TOOL_SCENES
 from tactilepipe.core.errors import TactilepipeError
 
 
@@ -64,7 +65,7 @@ def add_parsers(sub, common, provenance) -> None:
     s.add_argument("--checkpoint", required=True, help="best.pt, or a public best_model_*.pth")
     s.add_argument("--expect", metavar="NAME", help="first check the checkpoint's size and sha256 against "
                                                    "params.yaml public_data.files.NAME")
-    s.add_argument("--scene", choices=["tool_normal", "tool_shear"], required=True)
+    s.add_argument("--scene", choices=list(TOOL_SCENES), required=True)
     s.add_argument("--data-dir", required=True)
     s.add_argument("--split", help="split file: evaluate its test set")
     s.add_argument("--all-frames", action="store_true", help="evaluate every frame of the data set")

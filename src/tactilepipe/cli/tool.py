@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 from tactilepipe.cli.common import stage_params, run_parallel
+from tactilepipe.pipeline.runs import TOOL_SCENES
 
 
 def cmd_simulate_tool(args) -> None:
@@ -83,7 +84,7 @@ def cmd_tool_report(args) -> None:
 
 
 def cmd_predict(args) -> None:
-    from tactilepipe.tool.model.predict import stream_predictions
+    from tactilepipe.tool.model.stream import stream_predictions
     p = stage_params(args, "tool_ingest.ros_topics", "tool_ingest.image_size", "predict")
     stream_predictions(Path(args.checkpoint), Path(args.trial), args.format, p, limit=args.limit,
                        label_range=args.label_range)
@@ -92,7 +93,8 @@ def cmd_predict(args) -> None:
 def cmd_report_tool_data(args) -> None:
     from tactilepipe.tool.report.data import build_data_report
     p = stage_params(args, "tool_split.level_n")
-    label = "normal" if args.what == "tool_normal" else "shear"
+    from tactilepipe.pipeline.runs import scene_label
+    label = scene_label(args.what)
     build_data_report(Path(args.in_dir) / "data", Path(args.in_dir), label, p["tool_split"]["level_n"])
 
 
@@ -134,7 +136,7 @@ def add_parsers(sub, common, provenance) -> None:
     s.set_defaults(func=cmd_tool_split)
 
     s = sub.add_parser("tool-train", parents=[common], help="train one tool-force model variant, predict its test set")
-    s.add_argument("--scene", choices=["tool_normal", "tool_shear"], required=True)
+    s.add_argument("--scene", choices=list(TOOL_SCENES), required=True)
     s.add_argument("--variant", choices=["full", "no_ref", "single", "no_gam"], required=True)
     s.add_argument("--data-dir", required=True)
     s.add_argument("--split", required=True, help="split file (results/<scene>/splits/<name>.json)")
@@ -145,7 +147,7 @@ def add_parsers(sub, common, provenance) -> None:
     s.set_defaults(func=cmd_tool_train)
 
     s = sub.add_parser("tool-report", parents=[common, provenance], help="metrics.json, tables and figures of the tool models")
-    s.add_argument("--scene", choices=["tool_normal", "tool_shear"], required=True)
+    s.add_argument("--scene", choices=list(TOOL_SCENES), required=True)
     s.add_argument("--in-dir", required=True)
     s.add_argument("--runs", nargs="+", required=True,
                    help="every run of the scene (results/<scene>/models/<run>; names as in pipeline/runs.py)")

@@ -122,7 +122,7 @@ def save_figure(target: str | Path, fig, dpi: int = 150) -> None:
         fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format=Path(target).suffix.lstrip(".") or "png")
 
 
-def open_memmap(path: str | Path, shape: tuple, dtype) -> "np.memmap":
+def open_memmap(path: str | Path, shape: tuple, dtype):
     """A new .npy file mapped for writing (``np.lib.format.open_memmap(path, "w+")``), with its
     disk blocks reserved first.
 

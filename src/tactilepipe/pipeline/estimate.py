@@ -28,14 +28,14 @@ Job = tuple[str, dict, dict, int]
 
 
 @lru_cache(maxsize=None)
-def forward_flops(variant: str, depth: int, image_size: int) -> float:
+def forward_flops(variant: str, depth: int, image_size: int, gam_channel_gate: str) -> float:
     """FLOPs (multiply and add counted as two) of one frame pair through the model, inference mode."""
     import torch
     from torch.utils.flop_counter import FlopCounterMode
 
     from tactilepipe.tool.model.network import build_model
     with torch.device("meta"):
-        model = build_model(variant, depth, image_size).eval()
+        model = build_model(variant, depth, image_size, gam_channel_gate).eval()
         x = torch.empty(1, 4, image_size, image_size)
         with FlopCounterMode(display=False) as counter:
             model(x)
@@ -48,7 +48,8 @@ def planned_pairs(p: dict, scene: str, root: Path = Path(".")) -> int | None:
     if samples.exists():
         import pyarrow.parquet as pq
         return pq.ParquetFile(samples).metadata.num_rows
-    kind = "normal" if scene == "tool_normal" else "shear"
+    from tactilepipe.pipeline.runs import scene_label
+    kind = scene_label(scene)
     sessions = p["tool_sessions"]
     if not sessions or not all(s.startswith("sim-") for s in sessions):
         return None                                 # real recordings not yet ingested: unknown
@@ -67,7 +68,7 @@ def training_flops(p: dict, pairs: int, variant: str, depth: int, image_size: in
     n_train, n_val, n_test = pairs * f_train, pairs * f_val, pairs * f_test
     if tt["max_train_batches_per_epoch"]:
         n_train = min(n_train, tt["max_train_batches_per_epoch"] * tt["batch_size"])
-    fwd = forward_flops(variant, depth, image_size)
+    fwd = forward_flops(variant, depth, image_size, tt["gam_channel_gate"])
     epochs = tt["max_epochs"]
     total = epochs * (3 * fwd * n_train + fwd * n_val) + fwd * n_test
     return {"forward_gflop": fwd / 1e9, "epochs": epochs, "train_pairs": int(n_train), "flop": total}

@@ -22,7 +22,6 @@ Nothing here writes the volume or the off-table interval into the bag; labels go
 
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,7 +30,6 @@ import numpy as np
 from tactilepipe.papillarray import messages as pa
 from tactilepipe.core.atomic import write_text
 from tactilepipe.papillarray.bagio import write_bag
-from tactilepipe.core.errors import InputError
 from tactilepipe.volume import grasp
 from tactilepipe.papillarray import viscoelastic
 from tactilepipe.papillarray.physics import (G, SESSION_EPOCH_S, minimum_jerk, normal_load_map,

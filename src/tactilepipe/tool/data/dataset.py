@@ -16,7 +16,6 @@ into memory-mappable arrays:
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 from pathlib import Path
 

@@ -24,7 +24,7 @@ def read_bgr(path: Path, record: str | None = None) -> np.ndarray:
     count are InputErrors. (That a sensor keeps one size is checked at ingest.)"""
     img = read_image(path, cv2.IMREAD_UNCHANGED, record)
     if img.ndim == 2:
-        raise InputError(path, f"grayscale image; a DIGIT frame has 3 channels (BGR)", record)
+        raise InputError(path, "grayscale image; a DIGIT frame has 3 channels (BGR)", record)
     if img.shape[2] != 3 or img.dtype != np.uint8:
         raise InputError(path, f"expected 3-channel uint8 BGR, got {img.shape[2]} channels of {img.dtype}", record)
     if img.shape[:2] not in DIGIT_SIZES:

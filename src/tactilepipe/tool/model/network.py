@@ -231,7 +231,7 @@ class ResNetRegressor(nn.Module):
 
 
 class ToolForceNet(nn.Module):
-    def __init__(self, variant: str, depth: int, image_size: int, gam_channel_gate: str = "sigmoid"):
+    def __init__(self, variant: str, depth: int, image_size: int, gam_channel_gate: str):
         super().__init__()
         self.variant, self.depth, self.image_size = variant, depth, image_size
         self.gam_channel_gate = gam_channel_gate
@@ -292,7 +292,7 @@ def check_image_size(image_size: int) -> None:
                             f"(the encoder divides by 8)")
 
 
-def build_model(variant: str, depth: int, image_size: int, gam_channel_gate: str = "sigmoid") -> ToolForceNet:
+def build_model(variant: str, depth: int, image_size: int, gam_channel_gate: str) -> ToolForceNet:
     """A freshly initialised model (no pretrained weights). ``variant`` is a key of VARIANTS,
     ``depth`` one of 18, 34, 50, 101, ``image_size`` the side S of the square inputs,
     ``gam_channel_gate`` one of GAM_CHANNEL_GATES."""

@@ -11,26 +11,23 @@ import numpy as np
 import pandas as pd
 
 from tactilepipe.core.atomic import write_json, write_parquet
+from tactilepipe.pipeline.runs import LABEL_NORMALISATION, scene_label
 from tactilepipe.tool.model.evaluate import evaluate
 from tactilepipe.tool.data.loader import ToolFrames
 
-LABELS = {"tool_normal": ("normal", "minmax"), "tool_shear": ("shear", "zscore")}
 
 
 def train_and_predict(scene: str, data_dir: Path, split_path: Path, out_dir: Path, variant: str, depth: int,
                       image_size: int, tp: dict, seed: int, progress: bool = True) -> dict:
-    from tactilepipe.tool.model.train import TrainConfig, latency_ms, load_model, predict, stale_checkpoint_reason, train
-    label, normalise = LABELS[scene]
+    from tactilepipe.tool.model.train import TrainConfig, stale_checkpoint_reason, train
+    from tactilepipe.tool.model.inference import latency_ms, load_model, predict
+    label = scene_label(scene)
+    normalise = LABEL_NORMALISATION[label]
     data = ToolFrames(data_dir, label).resized(image_size)
     split = json.loads(Path(split_path).read_text())
     seed += split["repeat"]          # each repeat of a split draws its own model seed too
-    cfg = TrainConfig(variant=variant, depth=depth, image_size=image_size, lr=tp["lr"], lr_schedule=tp["lr_schedule"],
-                      batch_size=tp["batch_size"],
-                      max_epochs=tp["max_epochs"], patience=tp["patience"], seed=seed, device=tp["device"],
-                      amp=tp["amp"], num_threads=tp["num_threads"], normalise=normalise,
-                      max_train_batches_per_epoch=tp["max_train_batches_per_epoch"] or None,
-                      bn_recalibration_batches=tp["bn_recalibration_batches"],
-                      gam_channel_gate=tp["gam_channel_gate"])
+    cfg = TrainConfig.from_params(tp, variant=variant, depth=depth, image_size=image_size, normalise=normalise,
+                                  seed=seed)
     # last.pt of an interrupted run resumes it; one made with other settings (the workflow re-runs
     # this job after a parameter change) or unreadable is set aside, and the run starts again
     stale = stale_checkpoint_reason(out_dir / "last.pt", cfg, split, data)

@@ -32,10 +32,10 @@ import torch
 from torch import nn
 
 from tactilepipe.core.atomic import atomic_path
-from tactilepipe.core.errors import ArgumentError, ConfigError, InputError, TactilepipeError
+from tactilepipe.core.errors import ConfigError, InputError, TactilepipeError
 from tactilepipe.tool.model.network import build_model, count_parameters
 
-CHECKPOINT_FORMAT = "tactilepipe.tool.model.train/1"
+CHECKPOINT_FORMAT = "tactilepipe.tool.train/1"   # a file format tag, not a module path: kept so older checkpoints load
 HISTORY_COLUMNS = ["epoch", "train_loss", "val_loss", "val_mae_n", "lr", "epoch_s", "wall_s"]
 # Config fields a resumed run may change; every other field must match the checkpoint.
 RESUMABLE_CHANGES = {"max_epochs", "patience", "device", "amp", "num_threads"}
@@ -44,24 +44,37 @@ LR_SCHEDULES = ("constant", "cosine")
 
 @dataclass
 class TrainConfig:
-    variant: str = "full"               # key of model.VARIANTS
-    depth: int = 101                    # ResNet depth: 18, 34, 50, 101
-    image_size: int = 224               # S of the (b, 4, S, S) inputs (must match the dataset)
-    lr: float = 2e-4                    # Adam
-    lr_schedule: str = "constant"       # constant (the paper) | cosine: per batch from lr down to 0 at max_epochs
-    batch_size: int = 64
-    max_epochs: int = 300
-    patience: int | None = 40           # epochs without a lower validation loss before stopping (None/0: never)
-    normalise: str = "minmax"           # minmax (normal force) | zscore (shear force)
-    seed: int = 0                       # model init, dropout and the per-epoch shuffle
-    device: str = "auto"                # auto (CUDA when available, else CPU) | cpu | cuda | cuda:N
-    amp: bool = True                    # mixed precision, on CUDA only (ignored on CPU)
-    num_threads: int | None = None      # torch CPU threads while training (None: leave as is)
-    max_train_batches_per_epoch: int | None = None   # cap for smoke runs (None: every batch)
-    channels_last: bool = True          # NHWC memory format (faster on CPU)
-    bn_recalibration_batches: int = 20  # training batches that re-estimate BatchNorm statistics before
+    """One run's training settings. Every value comes from params.yaml ``tool_train`` (``from_params``)
+    or from the run itself (variant, size, label scaling, seed): none has a default here."""
+    variant: str                        # key of network.VARIANTS
+    depth: int                          # ResNet depth: 18, 34, 50, 101
+    image_size: int                     # S of the (b, 4, S, S) inputs (must match the dataset)
+    lr: float                           # Adam
+    lr_schedule: str                    # constant (the paper) | cosine: per batch from lr down to 0 at max_epochs
+    batch_size: int
+    max_epochs: int
+    patience: int | None                # epochs without a lower validation loss before stopping (None/0: never)
+    normalise: str                      # minmax (normal force) | zscore (shear force)
+    seed: int                           # model init, dropout and the per-epoch shuffle
+    device: str                         # auto (CUDA when available, else CPU) | cpu | cuda | cuda:N
+    amp: bool                           # mixed precision, on CUDA only (ignored on CPU)
+    num_threads: int | None             # torch CPU threads while training (None: leave as is)
+    max_train_batches_per_epoch: int | None   # cap for smoke runs (None: every batch)
+    bn_recalibration_batches: int       # training batches that re-estimate BatchNorm statistics before
                                         # each validation (0: keep the running averages)
-    gam_channel_gate: str = "sigmoid"   # sigmoid (ours) | none (the public code's GAM channel branch)
+    gam_channel_gate: str               # sigmoid (ours) | none (the public code's GAM channel branch)
+    channels_last: bool = True          # NHWC memory format (faster on CPU); not a parameter
+
+    @classmethod
+    def from_params(cls, tool_train: dict, *, variant: str, depth: int, image_size: int, normalise: str,
+                    seed: int) -> "TrainConfig":
+        """The settings of one run from the ``tool_train`` parameter group and the run's own values."""
+        t = tool_train
+        return cls(variant=variant, depth=depth, image_size=image_size, normalise=normalise, seed=seed,
+                   lr=t["lr"], lr_schedule=t["lr_schedule"], batch_size=t["batch_size"], max_epochs=t["max_epochs"],
+                   patience=t["patience"], device=t["device"], amp=t["amp"], num_threads=t["num_threads"],
+                   max_train_batches_per_epoch=t["max_train_batches_per_epoch"] or None,
+                   bn_recalibration_batches=t["bn_recalibration_batches"], gam_channel_gate=t["gam_channel_gate"])
 
     @classmethod
     def from_dict(cls, d: dict) -> "TrainConfig":
@@ -121,13 +134,13 @@ def scheduled_lr(cfg: TrainConfig, step: int, total_steps: int) -> float:
     return cfg.lr
 
 
-def _uses_channels_last(model: nn.Module) -> bool:
+def uses_channels_last(model: nn.Module) -> bool:
     # a conv weight whose strides tell the two formats apart (not 1 input channel or a 1x1 kernel)
     w = next((p for p in model.parameters() if p.ndim == 4 and p.shape[1] > 1 and p.shape[2] > 1), None)
     return w is not None and w.is_contiguous(memory_format=torch.channels_last) and not w.is_contiguous()
 
 
-def _to_input(x: torch.Tensor, device: torch.device, channels_last: bool) -> torch.Tensor:
+def to_input(x: torch.Tensor, device: torch.device, channels_last: bool) -> torch.Tensor:
     x = x.to(device, non_blocking=True)
     return x.contiguous(memory_format=torch.channels_last) if channels_last else x
 
@@ -155,7 +168,7 @@ def _write_history(path: Path, history: list[dict]) -> None:
             w.writerows(history)
 
 
-def _load_checkpoint(path: Path, raw=None) -> dict:
+def load_checkpoint(path: Path, raw=None) -> dict:
     """Our checkpoint at ``path`` (``raw``: its already loaded contents)."""
     if raw is None:
         from tactilepipe.tool.model.public_weights import read_state
@@ -196,7 +209,7 @@ def stale_checkpoint_reason(last_path: str | Path, cfg: TrainConfig, split: dict
     if not Path(last_path).exists():
         return None
     try:
-        ckpt = _load_checkpoint(Path(last_path))
+        ckpt = load_checkpoint(Path(last_path))
     except InputError as exc:
         return str(exc)
     diff = _settings_diff(ckpt, cfg, split, data)
@@ -275,7 +288,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
         last_path, best_path = out_dir / "last.pt", out_dir / "best.pt"
         resumed_from = 0
         if last_path.exists():
-            ckpt = _load_checkpoint(last_path)
+            ckpt = load_checkpoint(last_path)
             diff = _settings_diff(ckpt, cfg, split, data)
             if diff:
                 raise TactilepipeError(f"{last_path}: made with different settings {diff}; "
@@ -310,7 +323,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
                     continue
                 for group in opt.param_groups:
                     group["lr"] = scheduled_lr(cfg, (epoch - 1) * n_batches + b - 1, cfg.max_epochs * n_batches)
-                x = _to_input(x, device, cfg.channels_last)
+                x = to_input(x, device, cfg.channels_last)
                 target = normalise(y.to(device), stats, cfg.normalise)
                 with torch.autocast(device.type, enabled=use_amp):
                     pred = model(x)
@@ -385,7 +398,7 @@ def recalibrate_batchnorm(model: nn.Module, data, idx, cfg: TrainConfig, device:
             if b >= cfg.bn_recalibration_batches:
                 break
             if len(x) >= 2:
-                model(_to_input(x, device, cfg.channels_last))
+                model(to_input(x, device, cfg.channels_last))
     finally:
         for m, momentum in zip(bns, momenta):
             m.momentum = momentum
@@ -404,7 +417,7 @@ def _validate(model, data, idx, cfg, stats, device, use_amp, epoch) -> tuple[flo
     model.eval()
     abs_norm, abs_n, count = 0.0, 0.0, 0
     for b, (x, y, part) in enumerate(data.batches(idx, cfg.batch_size, shuffle=False), start=1):
-        x = _to_input(x, device, cfg.channels_last)
+        x = to_input(x, device, cfg.channels_last)
         with torch.autocast(device.type, enabled=use_amp):
             pred = model(x).float()
         err = (pred - normalise(y.to(device), stats, cfg.normalise)).abs().sum().item()
@@ -414,112 +427,3 @@ def _validate(model, data, idx, cfg, stats, device, use_amp, epoch) -> tuple[flo
         abs_n += (denormalise(pred, stats, cfg.normalise) - y.to(device)).abs().sum().item()
         count += len(y)
     return abs_norm / count, abs_n / count
-
-
-# ----------------------------------------------------------------------------- inference
-
-def load_model(checkpoint_path: str | Path, device: str = "cpu", channels_last: bool = True,
-               image_size: int | None = None) -> tuple[nn.Module, dict]:
-    """Model of a ``best.pt`` or ``last.pt`` in eval mode, and its metadata (variant, depth,
-    image_size, normalise, label_stats, label, epoch, val_loss, val_mae_n, config, ...).
-
-    A state dict saved by the public code of study 000 (its published ``best_model_*.pth``) is
-    recognised by its key names and loaded through tool/model/public_weights.py; it records neither its
-    input size nor its label scaling, so ``image_size`` must be given (metadata ``label_stats``
-    is then None and ``source`` "public")."""
-    from tactilepipe.tool.model import public_weights
-    raw = public_weights.read_state(Path(checkpoint_path))
-    if public_weights.is_public_state(raw):
-        if image_size is None:
-            raise InputError(checkpoint_path, "a public-code checkpoint records no input size: give the image "
-                                              "size to run it at")
-        model, meta = public_weights.public_model(raw, image_size, Path(checkpoint_path))
-    else:
-        model, meta = _own_model(Path(checkpoint_path), raw)
-    model = model.to(resolve_device(device))
-    if channels_last:
-        model = model.to(memory_format=torch.channels_last)
-    return model.eval(), meta
-
-
-def _own_model(checkpoint_path: Path, raw) -> tuple[nn.Module, dict]:
-    ckpt = _load_checkpoint(checkpoint_path, raw)
-    meta = {"gam_channel_gate": "sigmoid", **ckpt["meta"], "config": ckpt["config"], "source": "tactilepipe"}
-    try:
-        model = build_model(meta["variant"], meta["depth"], meta["image_size"], meta["gam_channel_gate"])
-    except ArgumentError as exc:                  # the file's metadata, not the caller's argument
-        raise InputError(checkpoint_path, f"metadata: {exc}") from None
-    model.load_state_dict(ckpt["model"])
-    return model, meta
-
-
-def predict(model: nn.Module, data, idx, label_stats: dict, normalise: str, batch_size: int = 256) -> np.ndarray:
-    """Denormalised forces (N) for samples ``idx`` of ``data``, in the order of ``idx``."""
-    device = next(model.parameters()).device
-    cl = _uses_channels_last(model)
-    was_training = model.training
-    model.eval()
-    out = []
-    try:
-        with torch.no_grad():
-            for x, _, _ in data.batches(np.asarray(idx, int), batch_size, shuffle=False):
-                out.append(model(_to_input(x, device, cl)).float().cpu())
-    finally:
-        model.train(was_training)
-    z = torch.cat(out).numpy() if out else np.zeros(0, np.float32)
-    return denormalise(z.astype(np.float64), label_stats, normalise)
-
-
-def latency_ms(model: nn.Module, image_size: int, n: int = 50, warmup: int = 5) -> float:
-    """Median wall time (ms) of one forward pass of one frame pair (batch 1), after warm-up."""
-    device = next(model.parameters()).device
-    x = _to_input(torch.rand(1, 4, image_size, image_size), device, _uses_channels_last(model))
-    was_training = model.training
-    model.eval()
-    times = []
-    try:
-        with torch.no_grad():
-            for i in range(warmup + n):
-                if device.type == "cuda":
-                    torch.cuda.synchronize()
-                t = time.perf_counter()
-                model(x)
-                if device.type == "cuda":
-                    torch.cuda.synchronize()
-                if i >= warmup:
-                    times.append(time.perf_counter() - t)
-    finally:
-        model.train(was_training)
-    return float(np.median(times) * 1000.0)
-
-
-def train_throughput(variant: str = "full", depth: int = 18, image_size: int = 64, batch_size: int = 64,
-                     steps: int = 3, channels_last: bool = True, num_threads: int | None = None,
-                     seed: int = 0) -> float:
-    """Training speed in frame pairs per second (forward + backward + Adam step on random CPU
-    data, after one warm-up step): what an epoch will cost on this machine."""
-    saved = torch.get_num_threads()
-    try:
-        if num_threads:
-            torch.set_num_threads(num_threads)
-        torch.manual_seed(seed)
-        model = build_model(variant, depth, image_size)
-        if channels_last:
-            model = model.to(memory_format=torch.channels_last)
-        opt = make_optimizer(model, 2e-4)
-        x = _to_input(torch.rand(batch_size, 4, image_size, image_size), torch.device("cpu"), channels_last)
-        y = torch.rand(batch_size)
-        model.train()
-
-        def step():
-            opt.zero_grad(set_to_none=True)
-            nn.functional.l1_loss(model(x), y).backward()
-            opt.step()
-
-        step()
-        t = time.perf_counter()
-        for _ in range(steps):
-            step()
-        return batch_size * steps / (time.perf_counter() - t)
-    finally:
-        torch.set_num_threads(saved)

@@ -25,7 +25,7 @@ from tactilepipe.tool.report import verdicts
 from tactilepipe.tool.model.evaluate import (BASELINES, LIKE_FOR_LIKE, baselines, evaluate, rest_frame_rmse_features,
                                        tactile_rmse_features)
 from tactilepipe.tool.data.loader import ToolFrames
-from tactilepipe.pipeline.runs import run_spec, sweep_run_name
+from tactilepipe.pipeline.runs import run_spec, scene_label, sweep_run_name
 from tactilepipe.tool.data.splits import parse_split_name
 
 SPLIT_0_KEYS = ("mae", "rmse", "r2", "slope", "intercept", "parameters", "epochs", "depth", "image_size")
@@ -87,7 +87,7 @@ def baseline_draws(data: ToolFrames, splits: list[dict]) -> list[dict[str, dict]
 
 
 def build_model_report(scene_dir: Path, scene: str, tool_train: dict, runs: list[str]) -> dict:
-    label = "normal" if scene == "tool_normal" else "shear"
+    label = scene_label(scene)
     models, tables, figs = scene_dir / "models", scene_dir / "tables", scene_dir / "figures"
     plan = plan_runs(tool_train, runs)
     variants = list(plan.repeats)

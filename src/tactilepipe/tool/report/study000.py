@@ -26,7 +26,7 @@ from tactilepipe.core.errors import InputError
 from tactilepipe.core.tables import write_table
 from tactilepipe.tool.model.evaluate import evaluate
 from tactilepipe.tool.data.loader import ToolFrames
-from tactilepipe.tool.model.run import LABELS
+from tactilepipe.pipeline.runs import scene_label
 from tactilepipe.tool.data.splits import label_stats
 
 PUBLIC_IMAGE_SIZE = 224     # the public code resizes every frame to 224 x 224
@@ -43,8 +43,8 @@ def evaluate_checkpoint(checkpoint: Path, data_dir: Path, scene: str, out_dir: P
                         contaminated: bool, device: str = "cpu") -> dict:
     """eval.json and predictions.parquet in ``out_dir`` for the test set of ``split_path`` (None:
     every frame of the data set)."""
-    from tactilepipe.tool.model.train import load_model, predict
-    label, _ = LABELS[scene]
+    from tactilepipe.tool.model.inference import load_model, predict
+    label = scene_label(scene)
     data = ToolFrames(data_dir, label)
     model, meta = load_model(checkpoint, device=device, image_size=int(data.frames.shape[-1]))
     if meta.get("label") not in (None, label):

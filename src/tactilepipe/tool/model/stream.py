@@ -34,7 +34,7 @@ def stream_predictions(checkpoint: Path, trial: Path, fmt: str, p: dict, limit: 
     # process (the CLI), not when torch was already imported by the caller
     os.environ["OMP_WAIT_POLICY"] = p["predict"]["wait_policy"].upper()
     import torch
-    from tactilepipe.tool.model.train import load_model
+    from tactilepipe.tool.model.inference import load_model
     saved_threads = torch.get_num_threads()
     torch.set_num_threads(p["predict"]["num_threads"])
     try:
