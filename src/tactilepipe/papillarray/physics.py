@@ -56,7 +56,7 @@ def saturate(measured: np.ndarray, sim: dict) -> tuple[np.ndarray, np.ndarray]:
     stiffness; a tip beyond the tracked travel (``pillar_travel_mm``) reads as the travel's edge:
     +-k_t travel on fX, fY and +-k_n travel on fZ. Returns the clipped readings and a same-shape
     mask of the saturated values (a reading at the limit, never NaN)."""
-    travel = sim.get("pillar_travel_mm", np.inf)
+    travel = sim["pillar_travel_mm"]
     limit = travel * np.array([sim["pillar_tangential_stiffness_n_per_mm"]] * 2
                               + [sim["pillar_normal_stiffness_n_per_mm"]], float)
     clipped = np.clip(measured, -limit, limit)

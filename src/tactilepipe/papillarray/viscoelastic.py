@@ -52,8 +52,8 @@ class Prony:
 
     @classmethod
     def from_params(cls, sim: dict) -> "Prony":
-        g = tuple(float(v) for v in sim.get("creep_fractions", []))
-        tau = tuple(float(v) for v in sim.get("creep_tau_s", []))
+        g = tuple(float(v) for v in sim["creep_fractions"])
+        tau = tuple(float(v) for v in sim["creep_tau_s"])
         if len(g) != len(tau):
             raise ConfigError(f"simulate_volume: creep_fractions ({len(g)} values) and creep_tau_s "
                               f"({len(tau)} values) must have the same length")
@@ -236,9 +236,9 @@ def _modal(f, dt, substeps, prony, method, g):
 
 
 def integrate_params(force: np.ndarray, dt: float, sim: dict) -> np.ndarray:
-    """``integrate`` with the simulate_volume parameters (no creep when the keys are absent)."""
-    return integrate(force, dt, Prony.from_params(sim), sim.get("creep_integrator", "exponential"),
-                     sim.get("creep_substeps", 1))
+    """``integrate`` with the simulate_volume parameters (no creep when creep_fractions is empty)."""
+    return integrate(force, dt, Prony.from_params(sim), sim["creep_integrator"],
+                     sim["creep_substeps"])
 
 
 def step_response(t: np.ndarray, prony: Prony) -> np.ndarray:

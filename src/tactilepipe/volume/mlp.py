@@ -4,7 +4,8 @@ This is scikit-learn's MLPRegressor algorithm (Glorot-uniform init, squared loss
 alpha/2n·||W||², Adam with beta 0.9/0.999, eps 1e-8, reshuffled minibatches, stop after
 ``n_iter_no_change`` epochs without a ``tol`` gain in training loss) written in NumPy:
 sklearn's per-batch overhead made one fit on a 140k-sample fold take ~18 s, this one takes a
-few seconds, and `tests/test_mlp.py` checks both reach the same accuracy. Inputs and target are
+few seconds, and `tests/unit/test_volume_models.py` (test_mlp_matches_sklearn) checks both reach
+the same accuracy. Inputs and target are
 standardised with training statistics only.
 
 A 2-unit ReLU layer sometimes starts with both units dead and settles on a constant (R² ≈ 0);

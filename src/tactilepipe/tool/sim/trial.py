@@ -24,7 +24,7 @@ fingers point down, the tool tip below them):
   see different imprints that depend on the pose: on the tilt, on the insertion, and on the
   hand-set grasp's unrecorded lean out of the pad plane (and a cranked tool's tip offset).
   During pressing the tip sticks on the sensor cap: friction takes ``tip_pin_fraction`` of the
-  tip's tendency to slide sideways (REFERENCE: M = L (F_N sin(theta) - R_x cos(theta))),
+  tip's tendency to slide sideways (the moment about the grasp: M = L (F_N sin(theta) - R_x cos(theta))),
   bounded by the tip friction. The pads stick (no slip; |T| <= mu N is checked per pad).
 - Normal trials: pressing cycles (minimum-jerk rise, hold, fall) with rests at 0 N between
   them; peaks from a Beta distribution skewed to light presses, plus a small force ripple.
