@@ -354,8 +354,11 @@ EDITS = [   # (module, snakemake rules planned, DVC stages out of date, an outpu
     # the tool models' provenance records the ingest code: the report re-runs (not the trainings)
     ("tool/data/ingest.py", TOOL_DATA_ON, {"tool_data", "tool_models"},
      "results/tool/shards/sim-smoke/paper_knife_p00_normal00.parquet"),
-    ("volume/simulate.py", VOLUME_ALL, {"simulate_volume", "simulate_drift", "volume", "drift"},
+    # the drift simulator shares the pillar physics (papillarray/physics.py), not the lift simulator
+    ("volume/simulate.py", VOLUME_ALL - {"drift_report"}, {"simulate_volume", "volume"},
      "raw/volume/sim-smoke/v000_main_l00.bag"),
+    # a study's CLI module is in its own stages' code only: a drift stage edit re-runs nothing else
+    ("cli/drift.py", {"drift_report"}, {"simulate_drift", "drift"}, "results/drift/fits.csv"),
     ("papillarray/messages.py", VOLUME_ALL, {"simulate_volume", "simulate_drift", "volume", "drift"},
      "results/volume/shards/sim-smoke/v000_main_l00.parquet"),
 ]
