@@ -167,8 +167,13 @@ def test_generator_lists_each_stage_code_closure_and_declared_params():
     stages = yaml.safe_load((REPO / "dvc.yaml").read_text())["stages"]
     from tactilepipe.pipeline import codedeps
     drift_code = {d for d in stages["simulate_drift"]["deps"] if d.endswith(".py")}
-    # the drift simulator imports the volume simulator and its viscoelastic pillars
-    assert {"src/tactilepipe/volume/simulate.py", "src/tactilepipe/papillarray/viscoelastic.py"} <= drift_code
+    # the drift simulator shares the pillar physics with the lift simulator, not the lift simulator
+    assert {"src/tactilepipe/papillarray/physics.py", "src/tactilepipe/papillarray/viscoelastic.py"} <= drift_code
+    assert "src/tactilepipe/volume/simulate.py" not in drift_code
+    # a stage's CLI code is its own study's module: no other study's stages
+    assert "src/tactilepipe/cli/drift.py" in drift_code
+    assert not drift_code & {"src/tactilepipe/cli/volume.py", "src/tactilepipe/cli/tool.py"}
+    assert "src/tactilepipe/cli/drift.py" not in stages["volume"]["deps"]
     assert drift_code == set(codedeps.stage_files("cmd_simulate_drift"))
     assert "src/tactilepipe/tool/model/network.py" in stages["tool_models"]["deps"]
     # every rule runs `python -m tactilepipe`: the package's __main__ is code of every stage
