@@ -16,6 +16,7 @@ from tactilepipe.drift.simulate import session_plan as drift_plan
 from tactilepipe.tool.formats.trials import TRIALS_CSV, list_trials as list_tool_trials, public_trial_meta, read_trials_csv
 from tactilepipe.tool.sim import session_plan as tool_plan
 from tactilepipe.pipeline import runs as run_names
+from tactilepipe.pipeline.scenes import scene_label
 from tactilepipe.tool.data.splits import split_name
 from tactilepipe.tool.sim.background import background_path
 
@@ -281,7 +282,7 @@ def tool_clock_figures():
 
 def tool_split_names(scene):
     """Every split file of a tool scene: each repeat of the drawn splits, one per held-out tool, lopo."""
-    kind = run_names.scene_label(scene)
+    kind = scene_label(scene)
     return [split_name(k, r) for k in ("frame", "trial") for r in range(P["tool_split"]["repeats"])] + \
         [f"loto_{t}" for t in tool_names(kind)] + ["lopo"]
 

@@ -61,7 +61,7 @@ rule tool_clock_figure:
 
 rule tool_dataset:
     input:
-        shards=lambda w: tool_shards(run_names.scene_label(w.scene)),
+        shards=lambda w: tool_shards(scene_label(w.scene)),
         code=stage_code("cmd_tool_dataset"),
         params=param_stamp("cmd_tool_dataset", "tool_sessions"),
     output:
@@ -72,7 +72,7 @@ rule tool_dataset:
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     params:
-        kind=lambda w: run_names.scene_label(w.scene),
+        kind=lambda w: scene_label(w.scene),
     resources:
         **rule_resources("tool_dataset"),
     log:
@@ -93,7 +93,7 @@ rule tool_split:
         scene="tool_normal|tool_shear",
         split=SPLIT_NAME,
     params:
-        label=lambda w: run_names.scene_label(w.scene),
+        label=lambda w: scene_label(w.scene),
     resources:
         **rule_resources("tool_split"),
     log:
@@ -106,7 +106,7 @@ rule tool_split:
 rule tool_data_report:
     input:
         data=rules.tool_dataset.output,
-        raw=lambda w: tool_raw_inputs(run_names.scene_label(w.scene)),
+        raw=lambda w: tool_raw_inputs(scene_label(w.scene)),
         code=stage_code("cmd_report_tool_data"),
         params=param_stamp("cmd_report_tool_data"),
     output:
@@ -135,7 +135,7 @@ rule tool_data:
 
 
 def tool_runs(scene):
-    return run_names.tool_runs(P["tool_train"], P["tool_split"]["repeats"], tool_names(run_names.scene_label(scene)))
+    return run_names.tool_runs(P["tool_train"], P["tool_split"]["repeats"], tool_names(scene_label(scene)))
 
 
 def run_spec(run):
@@ -176,7 +176,7 @@ rule tool_model_report:
                               f=["eval.json", "predictions.parquet"]),
         splits=lambda w: [f"results/{w.scene}/splits/{run_spec(r)[1]}.json" for r in tool_runs(w.scene)],
         data=rules.tool_dataset.output,
-        raw=lambda w: tool_raw_inputs(run_names.scene_label(w.scene)),
+        raw=lambda w: tool_raw_inputs(scene_label(w.scene)),
         code=stage_code("cmd_tool_report"),
         params=param_stamp("cmd_tool_report", "tool_sessions", "tool_train.split", "tool_train.depth",
                            "tool_train.image_size", "tool_train.sweep", "tool_train.loto", "tool_split.repeats"),

@@ -7,7 +7,7 @@ import sys
 
 from tactilepipe.cli import drift, study000, tool, volume
 from tactilepipe.core.errors import TactilepipeError
-from tactilepipe.pipeline.runs import TOOL_SCENES
+from tactilepipe.pipeline.scenes import TOOL_SCENES
 
 
 def cmd_simulate(args) -> None:

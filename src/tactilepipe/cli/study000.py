@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from tactilepipe.cli.common import stage_params
-from tactilepipe.pipeline.runs import TOOL_SCENES
+from tactilepipe.pipeline.scenes import TOOL_SCENES
 from tactilepipe.core.errors import TactilepipeError
 
 

@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 from tactilepipe.cli.common import stage_params, run_parallel
-from tactilepipe.pipeline.runs import TOOL_SCENES
+from tactilepipe.pipeline.scenes import TOOL_SCENES, scene_label
 
 
 def cmd_simulate_tool(args) -> None:
@@ -93,7 +93,6 @@ def cmd_predict(args) -> None:
 def cmd_report_tool_data(args) -> None:
     from tactilepipe.tool.report.data import build_data_report
     p = stage_params(args, "tool_split.level_n")
-    from tactilepipe.pipeline.runs import scene_label
     label = scene_label(args.what)
     build_data_report(Path(args.in_dir) / "data", Path(args.in_dir), label, p["tool_split"]["level_n"])
 

@@ -1,9 +1,7 @@
-"""The tool scenes and their training runs: which force each scene learns, the runs' names and what
-each name trains.
+"""The training runs of a tool scene: their names and what each name trains.
 
-One place for the naming that the workflow, the compute estimate and the report share. A scene
-``tool_normal`` / ``tool_shear`` learns the ``normal`` / ``shear`` force from that kind of trial
-(TOOL_SCENES). From the parameter groups ``tool_train`` and ``tool_split``:
+One place for the naming that the workflow, the compute estimate and the report share (which
+force a scene learns is in scenes.py). From the parameter groups ``tool_train`` and ``tool_split``:
 - ``<variant>``: the variant on repeat 0 of the default split (the run the figures draw);
 - ``<variant>_r<k>``: the variant on repeat k (its own split seed and model seed);
 - ``full_loto_<tool>``: the full model with that tool left out (every tool in turn);
@@ -18,19 +16,6 @@ import re
 
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.tool.data.splits import parse_split_name, split_name
-
-# scene -> the force label it learns (also the kind of trial it is built from) and how the labels
-# are scaled for training (min-max for the normal force, z-score for shear, as study 000 does)
-TOOL_SCENES = {"tool_normal": "normal", "tool_shear": "shear"}
-LABEL_NORMALISATION = {"normal": "minmax", "shear": "zscore"}
-
-
-def scene_label(scene: str) -> str:
-    """The force label (and trial kind) of a tool scene: "normal" or "shear"."""
-    if scene not in TOOL_SCENES:
-        raise TactilepipeError(f"unknown tool scene '{scene}' (one of {', '.join(TOOL_SCENES)})")
-    return TOOL_SCENES[scene]
-
 
 def sweep_run_name(entry: dict) -> str:
     return f"full_d{entry['depth']}_s{entry['image_size']}"
