@@ -121,7 +121,7 @@ def main() -> None:
         shutil.rmtree(wd / "results/volume/shards")
         t_full = sh([str(BIN / "dvc"), "repro", "--force", "--single-item", "volume"], wd)
 
-        print(f"\n| measurement (default scale, 2 cores) | wall time | target |")
+        print("\n| measurement (default scale, 2 cores) | wall time | target |")
         print("|---|---|---|")
         print(f"| no-op `{' '.join(['snakemake', '--cores', '2', *SMK_TARGETS])}` | {smk[0]:.2f} s (median {smk[1]:.2f}) "
               f"| <= {TARGET_S:.0f} s {'ok' if smk[0] <= TARGET_S else 'MISSED'} |")

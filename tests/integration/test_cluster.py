@@ -21,27 +21,10 @@ from tactilepipe.core.config import load_params
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.pipeline.estimate import estimate_report, forward_flops, planned_pairs, training_flops
 
-from support.project import BIN, ENV, REPO
+from support.project import BIN, REPO, copy_project, run
 
 SCHEMA = json.loads((REPO / "workflow/schemas/params.schema.json").read_text())
 CLUSTER = REPO / ".ci" / "slurm-cluster"
-
-
-def copy_project(dest: Path) -> Path:
-    """The workflow and library in a fresh folder (as support.project.copy_project does, without studies/)."""
-    for name in ("Snakefile", "params.yaml", "dvc.yaml", ".dvcignore"):
-        if (REPO / name).exists():
-            shutil.copy(REPO / name, dest / name)
-    for name in ("workflow", "src"):
-        shutil.copytree(REPO / name, dest / name, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
-    return dest
-
-
-def run(cmd: list[str], cwd: Path, env: dict | None = None, check: bool = True) -> subprocess.CompletedProcess:
-    proc = subprocess.run(cmd, cwd=cwd, env=env or ENV, capture_output=True, text=True)
-    if check and proc.returncode != 0:
-        raise AssertionError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stdout[-4000:]}\n{proc.stderr[-4000:]}")
-    return proc
 
 
 # ----------------------------------------------------------------------------- declared resources
@@ -229,10 +212,6 @@ SLURM_FLAGS = [
 ]
 
 
-def env_of(wd: Path) -> dict:
-    return {**ENV, "PYTHONPATH": str(wd / "src")}
-
-
 def comparable(wd: Path) -> dict:
     """The results that must not depend on where a job ran (no run times)."""
     out = {}
@@ -276,13 +255,13 @@ def test_smoke_scale_through_slurm_equals_the_local_run(slurm_cluster, tmp_path)
     (tmp_path / "local").mkdir()
     (tmp_path / "cluster").mkdir()
     local = copy_project(tmp_path / "local")
-    # each folder runs its own copy of the package (PYTHONPATH; sbatch --export=ALL passes it on),
-    # so both runs use the same code even while the working tree is edited
-    run([str(BIN / "snakemake"), "--cores", "2", "--config", "scale=smoke"], local, env=env_of(local))
+    # each folder runs its own copy of the package (support.project.run sets PYTHONPATH; sbatch
+    # --export=ALL passes it on), so both runs use the same code even while the working tree is edited
+    run([str(BIN / "snakemake"), "--cores", "2", "--config", "scale=smoke"], local)
 
     cluster = copy_project(tmp_path / "cluster")
     proc = run([str(BIN / "snakemake"), "--workflow-profile", "workflow/profiles/slurm", "--config", "scale=smoke",
-                *SLURM_FLAGS], cluster, env=env_of(cluster))
+                *SLURM_FLAGS], cluster)
     log = proc.stdout + proc.stderr
 
     # every job went through the scheduler: an sbatch job id each, a SLURM log each, and the

@@ -22,7 +22,7 @@ import pytest
 import yaml
 
 from support.dvc_graph import covers, dvc_stages
-from support.project import BIN, REPO, copy_project, dvc, git, run, snakemake
+from support.project import BIN, REPO, dvc, git, run, snakemake
 
 pytestmark = pytest.mark.integration
 
@@ -60,11 +60,13 @@ def tracked_files(wd: Path) -> dict[str, bytes]:
 
 
 @pytest.fixture(scope="module")
-def repo(tmp_path_factory) -> dict:
-    """A git + DVC project at the smoke scale, reproduced, committed and pushed to a local remote."""
+def repo(tmp_path_factory, smoke_build) -> dict:
+    """A git + DVC project at the smoke scale, reproduced, committed and pushed to a local remote.
+    It starts as a copy of the shared smoke build (tests/integration/conftest.py): `dvc repro` runs
+    every stage, and DVC records and caches every output."""
     root = tmp_path_factory.mktemp("dvcflow")
-    (root / "project").mkdir()
-    wd = copy_project(root / "project", scale="smoke")
+    wd = root / "project"
+    shutil.copytree(smoke_build, wd, symlinks=True)          # file times kept: Snakemake's view unchanged
     shutil.copy(REPO / ".gitignore", wd / ".gitignore")
     git(wd, "init", "-q")
     git(wd, "config", "user.email", "test@example.com")
@@ -75,6 +77,11 @@ def repo(tmp_path_factory) -> dict:
     dvc(wd, "remote", "modify", "local", "url", str(remote))        # committed: a clone finds it
     out = dvc_out(wd, "repro")
     assert ran_stages(out) == set(STAGES), out[-3000:]
+    # what the build made is reused: DVC keeps a stage's persistent outputs (recordings, shards,
+    # trained models) and deletes the others before it runs the stage, so only those jobs re-run
+    rerun = set(job_counts(out))
+    assert not rerun & {"simulate_volume", "simulate_drift", "simulate_tool", "ingest_papillarray", "ingest_tool",
+                        "tool_train"}, rerun
     # DVC re-copies outputs from its cache when it commits them (new mtimes in DVC's order); the
     # profile's input checksums keep Snakemake from re-running anything
     proc = snakemake(wd, "-n")
@@ -82,7 +89,9 @@ def repo(tmp_path_factory) -> dict:
     git(wd, "add", ".")
     git(wd, "commit", "-q", "-m", "baseline at smoke scale")
     dvc(wd, "push")
-    yield {"wd": wd, "root": root, "remote": remote}
+    baseline = {"lock": yaml.safe_load((wd / "dvc.lock").read_text()),
+                "metrics": json.loads(dvc(wd, "metrics", "show", "--json").stdout)}
+    yield {"wd": wd, "root": root, "remote": remote, "baseline": baseline}
     shutil.rmtree(root, ignore_errors=True)          # the project, its clones and the remote: GBs
 
 
@@ -98,6 +107,18 @@ def test_every_generated_file_is_a_declared_out(repo):
     assert sorted(f for f in in_git if f.endswith("metrics.json")) == sorted(
         f"results/{s}/metrics.json" for s in ("drift", "tool_normal", "tool_shear", "volume"))
     assert (wd / ".dvc/config").read_text().count("reflink,copy") == 1
+
+
+def test_dvc_repro_records_every_stage_and_its_metrics(repo):
+    lock = repo["baseline"]["lock"]
+    assert set(lock["stages"]) == set(STAGES)
+    assert "mlp" in lock["stages"]["volume"]["params"]["params.yaml"]
+    assert lock["stages"]["tool_models"]["params"]["params.yaml"]["scale"] == "smoke"
+    shown = json.dumps(repo["baseline"]["metrics"])
+    for scene in ("volume", "drift", "tool_normal", "tool_shear"):
+        assert f"results/{scene}/metrics.json" in shown, scene
+    volume = json.loads((repo["wd"] / "results/volume/metrics.json").read_text())
+    assert volume["scale"] == "smoke" and volume["r2"]["fy_fz"]["mean"] > 0.9
 
 
 def take_in_session(repo: dict, scene: str, session: str, simulate_flags: list[str], param_line: str,
@@ -224,17 +245,23 @@ def test_new_drift_session_reruns_only_the_drift_stage(repo, new_drift_session):
 
 def test_experiments_rerun_only_the_stages_of_the_changed_params(repo, new_session):
     wd = repo["wd"]
-    out = dvc_out(wd, "exp", "run", "-n", "mu-lr", "-S", "baseline.mu_max=0.35", "-S", "tool_train.lr=0.0005")
+    # the tool report without one ablation: its stage re-runs, but no model trains again
+    out = dvc_out(wd, "exp", "run", "-n", "mu-variants", "-S", "baseline.mu_max=0.35",
+                  "-S", "tool_train.variants=[full, no_ref, single]")
     assert ran_stages(out) == {"volume", "tool_models"}, out[-3000:]
     counts = job_counts(out)
     assert "ingest_papillarray" not in counts and "ingest_tool" not in counts and "tool_dataset" not in counts
-    assert counts["tool_train"] == 2 * (4 * 2 + 3 + 1)       # every run of both targets (lr changed)
+    assert "tool_train" not in counts and counts["tool_model_report"] == 2, counts
+    for scene in ("tool_normal", "tool_shear"):
+        m = json.loads((wd / f"results/{scene}/metrics.json").read_text())
+        assert "full" in m and "no_gam" not in m, scene
     params = json.loads(dvc(wd, "params", "diff", "--json").stdout)["params.yaml"]
     assert (params["baseline.mu_max"]["old"], params["baseline.mu_max"]["new"]) == (0.4, 0.35)
-    assert (params["tool_train.lr"]["old"], params["tool_train.lr"]["new"]) == (0.0002, 0.0005)
+    assert params["tool_train.variants"] == {"old": ["full", "no_ref", "single", "no_gam"],
+                                             "new": ["full", "no_ref", "single"]}, params
     show = dvc(wd, "exp", "show", "--md").stdout
-    assert "mu-lr" in show and "baseline.mu_max" in show and "r2.baseline.mean" in show, show[:2000]
-    exp_diff = json.loads(dvc(wd, "exp", "diff", "HEAD", "mu-lr", "--json").stdout)
+    assert "mu-variants" in show and "baseline.mu_max" in show and "r2.baseline.mean" in show, show[:2000]
+    exp_diff = json.loads(dvc(wd, "exp", "diff", "HEAD", "mu-variants", "--json").stdout)
     assert exp_diff["params"]["params.yaml"]["baseline.mu_max"]["new"] == 0.35
     assert "results/volume/metrics.json" in exp_diff["metrics"]
     # back to the committed state (the experiment stays in `dvc exp show`); Snakemake's records are
@@ -349,8 +376,8 @@ TOOL_DATA_ON = {"ingest_tool", "tool_clock_figure", "tool_dataset", "tool_split"
 EDITS = [   # (module, snakemake rules planned, DVC stages out of date, an output the edit must rewrite)
     ("volume/report.py", {"volume_report"}, {"volume"}, "results/volume/metrics.json"),
     ("drift/analyse.py", {"drift_report"}, {"drift"}, "results/drift/fits.csv"),
-    ("tool/model/network.py", {"tool_train", "tool_model_report"}, {"tool_models"},
-     "results/tool_normal/models/full/best.pt"),
+    # planned only (None: no repro): every training of both scenes would re-run, the slowest case
+    ("tool/model/network.py", {"tool_train", "tool_model_report"}, {"tool_models"}, None),
     # the tool models' provenance records the ingest code: the report re-runs (not the trainings)
     ("tool/data/ingest.py", TOOL_DATA_ON, {"tool_data", "tool_models"},
      "results/tool/shards/sim-smoke/paper_knife_p00_normal00.parquet"),
@@ -385,10 +412,15 @@ def test_editing_a_module_reruns_exactly_the_rules_that_run_it(repo, new_session
         assert text.count('        "scale": p["scale"],') == 1
         path.write_text(text.replace('        "scale": p["scale"],', '        "scale": p["scale"],\n        "edited": 1,'))
     else:                                     # a comment counts too (conservative, never stale)
-        path.write_text(path.read_text() + "\n# edited\n")
-    before = (wd / rewritten).stat().st_mtime_ns
+        original = path.read_text()
+        path.write_text(original + "\n# edited\n")
     assert _planned_rules(wd) == rules
     assert _stale_stages(wd) == stages
+    if rewritten is None:                     # put back: a newer file with the old content re-runs nothing
+        path.write_text(original)
+        assert _planned_rules(wd) == set() and _stale_stages(wd) == set()
+        return
+    before = (wd / rewritten).stat().st_mtime_ns
     out = dvc_out(wd, "repro")
     assert ran_stages(out) == stages, out[-2000:]
     assert (wd / rewritten).stat().st_mtime_ns > before, rewritten

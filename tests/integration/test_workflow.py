@@ -1,4 +1,5 @@
-"""End to end through the real Snakemake and DVC command lines, at the smoke scale."""
+"""End to end through the real Snakemake and DVC command lines, at the smoke scale. The tests
+that read a whole build share one (`smoke_build`, tests/integration/conftest.py)."""
 
 from __future__ import annotations
 
@@ -11,21 +12,13 @@ import numpy as np
 import pytest
 import yaml
 
-from support.project import BIN, REPO, copy_project, run, snakemake
+from support.project import BIN, REPO, copy_project, linked_copy, run, snakemake
 
 pytestmark = pytest.mark.integration
 
 
-@pytest.fixture(scope="module")
-def smoke_run(tmp_path_factory) -> Path:
-    wd = copy_project(tmp_path_factory.mktemp("smk"))
-    snakemake(wd, "--config", "scale=smoke")
-    yield wd
-    shutil.rmtree(wd, ignore_errors=True)
-
-
-def test_smoke_builds_every_target_of_both_scenes(smoke_run: Path):
-    wd = smoke_run
+def test_smoke_builds_every_target_of_both_scenes(smoke_build: Path):
+    wd = smoke_build
     m = json.loads((wd / "results/volume/metrics.json").read_text())
     assert set(m["r2"]) == {"fx_fy_fz", "fy_fz", "fy", "fz", "baseline"}
     for method, r2 in m["r2"].items():
@@ -104,20 +97,19 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_run: Path):
     assert list((wd / "raw/volume/sim-smoke").glob("*.bag")) and (wd / "raw/volume/sim-smoke/lifts.csv").exists()
 
 
-def test_second_run_has_nothing_to_do(smoke_run: Path):
-    proc = snakemake(smoke_run, "-n", "--config", "scale=smoke")
+def test_second_run_has_nothing_to_do(smoke_build: Path):
+    proc = snakemake(smoke_build, "-n", "--config", "scale=smoke")
     assert "Nothing to be done" in proc.stdout + proc.stderr
 
 
-def test_changing_a_model_parameter_reruns_only_what_depends_on_it(smoke_run: Path):
-    params = smoke_run / "params.yaml"
+def test_changing_a_model_parameter_reruns_only_what_depends_on_it(smoke_build: Path, tmp_path: Path):
+    wd = linked_copy(smoke_build, tmp_path / "wd")       # the dry run rewrites a parameter stamp
+    params = wd / "params.yaml"
     original = params.read_text()
     assert "  mu_min: 0.1\n" in original
+    params.unlink()                                      # a file of its own, not the shared link
     params.write_text(original.replace("  mu_min: 0.1\n", "  mu_min: 0.12\n"))
-    try:
-        out = snakemake(smoke_run, "-n", "--config", "scale=smoke").stdout
-    finally:
-        params.write_text(original)
+    out = snakemake(wd, "-n", "--config", "scale=smoke").stdout
     planned = set(re.findall(r"^(?:local)?rule (\w+):$", out, flags=re.M)) - {"all"}   # job headers, not file lists
     assert planned == {"volume_baseline", "volume_report"}, planned
 
@@ -157,34 +149,37 @@ def test_bad_config_stops_before_any_job(tmp_path: Path, override, expected):
     assert not (wd / "results").exists() and not (wd / "raw").exists()
 
 
-def test_dvc_repro_reproduces_the_results(tmp_path: Path):
+def test_dvc_repro_builds_a_scene_from_nothing(tmp_path: Path):
+    """`dvc repro <stage>` in a fresh git + DVC project runs the stage and the ones it needs, in
+    order, and records them. (The whole graph's `dvc repro` runs in test_dvc_workflow.py, over the
+    shared smoke build.)"""
     wd = copy_project(tmp_path, scale="smoke")
     run(["git", "init", "-q"], wd)
     run([str(BIN / "dvc"), "init", "-q"], wd)
-    run([str(BIN / "dvc"), "repro"], wd)
+    out = run([str(BIN / "dvc"), "repro", "volume"], wd)
+    assert re.findall(r"Running stage '(\w+)'", out.stdout + out.stderr) == ["simulate_volume", "volume"]
     m = json.loads((wd / "results/volume/metrics.json").read_text())
     assert m["scale"] == "smoke" and m["r2"]["fy_fz"]["mean"] > 0.9
     shown = json.loads(run([str(BIN / "dvc"), "metrics", "show", "--json"], wd).stdout)
-    flat = json.dumps(shown)
-    assert "results/volume/metrics.json" in flat and "results/drift/metrics.json" in flat
-    status = run([str(BIN / "dvc"), "status"], wd).stdout
-    assert "up to date" in status.lower(), status
+    assert "results/volume/metrics.json" in json.dumps(shown)
+    status = json.loads(run([str(BIN / "dvc"), "status", "--json", "volume"], wd).stdout or "{}")
+    assert status == {}, status
     lock = yaml.safe_load((wd / "dvc.lock").read_text())
-    assert set(lock["stages"]) == {"simulate_volume", "simulate_drift", "volume", "drift", "simulate_tool", "tool_data",
-                                   "tool_models"}
+    assert set(lock["stages"]) == {"simulate_volume", "volume"}
     assert "mlp" in lock["stages"]["volume"]["params"]["params.yaml"]
+    assert not (wd / "results/tool_normal").exists() and not (wd / "raw/drift").exists()
 
 
-def test_a_tool_model_trains_and_predicts_through_snakemake(smoke_run: Path):
+def test_a_tool_model_trains_and_predicts_through_snakemake(smoke_build: Path):
     target = "results/tool_normal/models/full/eval.json"     # built by the smoke run (scene tool_normal)
-    e = json.loads((smoke_run / target).read_text())
+    e = json.loads((smoke_build / target).read_text())
     assert e["variant"] == "full" and e["split"] == "trial"
     assert e["n"] > 0 and e["latency_ms"] > 0 and e["parameters"] > 1e6
     assert {"mae", "rmse", "r2", "slope", "intercept", "per_tool", "per_window"} <= set(e)
     assert sum(w["n"] for w in e["per_window"]) == e["n"]        # every test pair counted once
     proc = run([str(BIN / "tactilepipe"), "predict", "--scale", "smoke", "--checkpoint",
-                str(smoke_run / "results/tool_normal/models/full/best.pt"), "--trial",
-                str(smoke_run / "raw/tool/sim-smoke/screwdriver_1_p00_normal00"), "--limit", "5"], smoke_run)
+                str(smoke_build / "results/tool_normal/models/full/best.pt"), "--trial",
+                str(smoke_build / "raw/tool/sim-smoke/screwdriver_1_p00_normal00"), "--limit", "5"], smoke_build)
     lines = proc.stdout.strip().splitlines()
     assert lines[0] == "pair,t_s,prediction_n,latency_ms" and len(lines) == 7 and "pairs/s" in lines[-1]
 

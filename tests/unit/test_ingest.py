@@ -39,7 +39,7 @@ def test_shard_has_every_column(shard_frame):
 @pytest.mark.parametrize("sensor", [0, 1])
 def test_shard_rows_equal_the_simulator_output(shard_frame, smoke_params, sensor):
     item, df = shard_frame
-    rec, lift = item["rec"], item["lift"]
+    rec = item["rec"]
     rows = df[df["sensor"] == sensor].sort_values("stamp_ns")
     assert (rows["topic"] == pa.sensor_topic(0, sensor)).all()
     assert len(rows) == len(rec["t"])

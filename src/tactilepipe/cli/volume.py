@@ -3,6 +3,7 @@ the friction baseline, the report, and the grasp-regime comparison."""
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
@@ -142,22 +143,21 @@ def add_parsers(sub, common, provenance) -> None:
     s.add_argument("--out", required=True)
     s.set_defaults(func=cmd_split)
 
-    s = sub.add_parser("train", parents=[common], help="fit the MLP of one input modality on every fold")
+    # the data set and its folds: what the model stages read
+    folded = argparse.ArgumentParser(add_help=False)
+    folded.add_argument("--dataset", required=True)
+    folded.add_argument("--folds", required=True)
+
+    s = sub.add_parser("train", parents=[common, folded], help="fit the MLP of one input modality on every fold")
     s.add_argument("--modality", required=True)
-    s.add_argument("--dataset", required=True)
-    s.add_argument("--folds", required=True)
     s.add_argument("--out-dir", required=True)
     s.set_defaults(func=cmd_train)
 
-    s = sub.add_parser("gridsearch", parents=[common], help="MLP grid search on the first fold")
-    s.add_argument("--dataset", required=True)
-    s.add_argument("--folds", required=True)
+    s = sub.add_parser("gridsearch", parents=[common, folded], help="MLP grid search on the first fold")
     s.add_argument("--out", required=True)
     s.set_defaults(func=cmd_gridsearch)
 
-    s = sub.add_parser("baseline", parents=[common], help="algebraic friction baseline with the mu sweep")
-    s.add_argument("--dataset", required=True)
-    s.add_argument("--folds", required=True)
+    s = sub.add_parser("baseline", parents=[common, folded], help="algebraic friction baseline with the mu sweep")
     s.add_argument("--out-dir", required=True)
     s.set_defaults(func=cmd_baseline)
 

@@ -1,0 +1,26 @@
+"""The smoke build that the integration tests share: the whole pipeline at the smoke scale, built
+from nothing once per test session by the real Snakemake command line.
+
+Tests that only read it (or only plan with `snakemake -n`) use it in place. A test that changes
+the project works on a copy: `shutil.copytree` (its own files, for runs that write) or
+`support.project.linked_copy` (hard links, for dry runs)."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from support.project import copy_project, snakemake
+
+
+@pytest.fixture(scope="session")
+def smoke_build(tmp_path_factory) -> Path:
+    wd = copy_project(tmp_path_factory.mktemp("smoke_build"), scale="smoke")
+    # with the default profile, as `make run` and a checkout's plain `snakemake` use it: Snakemake
+    # records input checksums, which later compare a touched but unchanged file as unchanged
+    snakemake(wd, "--workflow-profile", "workflow/profiles/default")
+    yield wd
+    shutil.rmtree(wd, ignore_errors=True)        # trained models: GBs
+
