@@ -3,7 +3,7 @@ from nothing once per test session by the real Snakemake command line.
 
 Tests that only read it (or only plan with `snakemake -n`) use it in place. A test that changes
 the project works on a copy: `shutil.copytree` (its own files, for runs that write) or
-`support.project.linked_copy` (hard links, for dry runs)."""
+hard links (`linked_copy` in test_workflow.py, for dry runs)."""
 
 from __future__ import annotations
 

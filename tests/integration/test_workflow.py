@@ -4,6 +4,7 @@ that read a whole build share one (`smoke_build`, tests/integration/conftest.py)
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 from pathlib import Path
@@ -12,9 +13,18 @@ import numpy as np
 import pytest
 import yaml
 
-from support.project import BIN, REPO, copy_project, linked_copy, run, snakemake
+from support.project import BIN, REPO, copy_project, run, snakemake
 
 pytestmark = pytest.mark.integration
+
+
+def linked_copy(src: Path, dest: Path) -> Path:
+    """A copy of a built project in which every file is a hard link (same bytes and file times, no
+    data copied). For dry runs only: what they write (parameter stamps, Snakemake's records) is
+    written to a temporary and renamed, which replaces the link, but a job writing in place would
+    change both copies."""
+    shutil.copytree(src, dest, symlinks=True, copy_function=os.link)
+    return dest
 
 
 def test_smoke_builds_every_target_of_both_scenes(smoke_build: Path):

@@ -27,15 +27,6 @@ def copy_project(dest: Path, scale: str | None = None) -> Path:
     return dest
 
 
-def linked_copy(src: Path, dest: Path) -> Path:
-    """A copy of a built project in which every file is a hard link (same bytes and file times, no
-    data copied). For dry runs only: what they write (parameter stamps, Snakemake's records) is
-    written to a temporary and renamed, which replaces the link, but a job writing in place would
-    change both copies."""
-    shutil.copytree(src, dest, symlinks=True, copy_function=os.link)
-    return dest
-
-
 def run(cmd: list[str], cwd: Path, check: bool = True) -> subprocess.CompletedProcess:
     # a project copy runs its own source (the installed package points at the repository's)
     env = {**ENV, "PYTHONPATH": str(Path(cwd) / "src")} if (Path(cwd) / "src" / "tactilepipe").is_dir() else ENV
