@@ -39,7 +39,8 @@ def untrained_checkpoint(p: dict, path: Path) -> Path:
     import dataclasses
     import torch
     from tactilepipe.tool.model.network import build_model
-    from tactilepipe.tool.model.train import CHECKPOINT_FORMAT, TrainConfig
+    from tactilepipe.tool.model.checkpoint import CHECKPOINT_FORMAT
+    from tactilepipe.tool.model.train import TrainConfig
     tt = p["tool_train"]
     size = tt["image_size"]
     cfg = TrainConfig.from_params(tt, variant="full", depth=tt["depth"], image_size=size, normalise="minmax",

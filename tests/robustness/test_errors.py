@@ -54,7 +54,7 @@ def test_cli_bad_ros_topics_is_one_line_naming_the_parameter(tmp_path):
 
 def test_checkpoint_with_bad_metadata_names_the_file(tmp_path):
     torch = pytest.importorskip("torch")
-    from tactilepipe.tool.model.train import CHECKPOINT_FORMAT
+    from tactilepipe.tool.model.checkpoint import CHECKPOINT_FORMAT
     from tactilepipe.tool.model.inference import load_model
     ckpt = tmp_path / "best.pt"
     torch.save({"format": CHECKPOINT_FORMAT, "meta": {"variant": "tiny", "depth": 18, "image_size": 32},

@@ -11,7 +11,7 @@ import torch
 from tactilepipe.core.config import load_params
 from tactilepipe.tool.model.network import build_model
 from tactilepipe.tool.model.stream import stream_predictions
-from tactilepipe.tool.model.train import CHECKPOINT_FORMAT
+from tactilepipe.tool.model.checkpoint import CHECKPOINT_FORMAT
 
 from support.sessions import make_native_session
 from support.tool_data import quick_cfg

@@ -11,8 +11,9 @@ import torch
 from torch import nn
 
 from tactilepipe.core.errors import ArgumentError, InputError
+from tactilepipe.tool.model.checkpoint import load_checkpoint
 from tactilepipe.tool.model.network import build_model
-from tactilepipe.tool.model.train import denormalise, load_checkpoint, resolve_device, to_input, uses_channels_last
+from tactilepipe.tool.model.train import denormalise, resolve_device, to_input, uses_channels_last
 
 
 def load_model(checkpoint_path: str | Path, device: str = "cpu", channels_last: bool = True,

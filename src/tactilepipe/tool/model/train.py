@@ -13,14 +13,12 @@ Files written into ``out_dir`` (each atomically):
     last.pt       model, optimiser, epoch, best validation loss, RNG states, history, config
     best.pt       model of the epoch with the lowest validation loss, with its metadata
 
-Epochs and batches are numbered from 1 in the history and in error messages.
+Epochs and batches are numbered from 1 in the history and in error messages. The checkpoint format
+and the check of whether a ``last.pt`` may resume are in ``checkpoint.py``.
 """
 
 from __future__ import annotations
 
-import csv
-import hashlib
-import json
 import math
 import sys
 import time
@@ -31,14 +29,11 @@ import numpy as np
 import torch
 from torch import nn
 
-from tactilepipe.core.atomic import atomic_path
-from tactilepipe.core.errors import ConfigError, InputError, TactilepipeError
+from tactilepipe.core.errors import ConfigError, TactilepipeError
+from tactilepipe.tool.model.checkpoint import (CHECKPOINT_FORMAT, data_fingerprint, load_checkpoint, save_checkpoint,
+                                               settings_diff, split_fingerprint, write_history)
 from tactilepipe.tool.model.network import build_model, count_parameters
 
-CHECKPOINT_FORMAT = "tactilepipe.tool.train/1"   # a file format tag, not a module path: kept so older checkpoints load
-HISTORY_COLUMNS = ["epoch", "train_loss", "val_loss", "val_mae_n", "lr", "epoch_s", "wall_s"]
-# Config fields a resumed run may change; every other field must match the checkpoint.
-RESUMABLE_CHANGES = {"max_epochs", "patience", "device", "amp", "num_threads"}
 LR_SCHEDULES = ("constant", "cosine")
 
 
@@ -149,73 +144,6 @@ def _epoch_seed(seed: int, epoch: int) -> int:
     return int(np.random.SeedSequence([seed, epoch]).generate_state(1)[0])
 
 
-def _fingerprint(split: dict) -> str:
-    key = {"train": [int(i) for i in split["train"]], "validation": [int(i) for i in split["validation"]],
-           "label_stats": split["label_stats"]}
-    return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
-
-
-def _save(obj: dict, path: Path) -> None:
-    with atomic_path(path) as tmp:
-        torch.save(obj, tmp)
-
-
-def _write_history(path: Path, history: list[dict]) -> None:
-    with atomic_path(path) as tmp:
-        with open(tmp, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=HISTORY_COLUMNS)
-            w.writeheader()
-            w.writerows(history)
-
-
-def load_checkpoint(path: Path, raw=None) -> dict:
-    """Our checkpoint at ``path`` (``raw``: its already loaded contents)."""
-    if raw is None:
-        from tactilepipe.tool.model.public_weights import read_state
-        raw = read_state(path)
-    if not isinstance(raw, dict) or raw.get("format") != CHECKPOINT_FORMAT:
-        raise InputError(path, f"not a tool-model checkpoint (expected format {CHECKPOINT_FORMAT}, or the public "
-                               f"code's state dict)")
-    return raw
-
-
-def _data_fingerprint(data) -> str:
-    """Labels and a strided sample of the frames: a rebuilt dataset with other images or labels
-    must not resume a run trained on the old one."""
-    h = hashlib.sha256(np.ascontiguousarray(getattr(data, "labels", np.zeros(0))).tobytes())
-    frames = getattr(data, "frames", None)
-    if frames is not None and len(frames):
-        h.update(repr(tuple(frames.shape)).encode())
-        h.update(np.ascontiguousarray(frames[:: max(1, len(frames) // 64)]).tobytes())
-    return h.hexdigest()[:16]
-
-
-def _settings_diff(ckpt: dict, cfg: TrainConfig, split: dict, data) -> dict:
-    """Settings of ``cfg``/``split``/``data`` that differ from the checkpoint's (empty: it may resume)."""
-    # checkpoints from before these settings existed: a constant schedule, sigmoid-gated GAMs
-    old = {"lr_schedule": "constant", "gam_channel_gate": "sigmoid", **ckpt["config"]}
-    resumable = RESUMABLE_CHANGES - ({"max_epochs"} if cfg.lr_schedule == "cosine" else set())   # it sets the decay
-    diff = {k: (old.get(k), v) for k, v in asdict(cfg).items() if k not in resumable and old.get(k) != v}
-    if ckpt["meta"].get("split_fingerprint") != _fingerprint(split):
-        diff["split"] = ("another split", "this split")
-    if ckpt["meta"].get("data_fingerprint") != _data_fingerprint(data):
-        diff["data"] = ("another dataset", "this dataset")
-    return diff
-
-
-def stale_checkpoint_reason(last_path: str | Path, cfg: TrainConfig, split: dict, data) -> str | None:
-    """Why ``last_path`` cannot resume a run with these settings (None: it can, or it does not exist).
-    A workflow uses this to start again after a settings change instead of failing."""
-    if not Path(last_path).exists():
-        return None
-    try:
-        ckpt = load_checkpoint(Path(last_path))
-    except InputError as exc:
-        return str(exc)
-    diff = _settings_diff(ckpt, cfg, split, data)
-    return f"made with different settings {diff}" if diff else None
-
-
 def _check_data(data, split: dict, cfg: TrainConfig) -> tuple[np.ndarray, np.ndarray]:
     train_idx, val_idx = np.asarray(split["train"], int), np.asarray(split["validation"], int)
     if len(train_idx) < 2 or len(val_idx) < 1:
@@ -266,8 +194,8 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
     stats = split["label_stats"]
     meta = {"variant": cfg.variant, "depth": cfg.depth, "image_size": cfg.image_size,
             "gam_channel_gate": cfg.gam_channel_gate, "normalise": cfg.normalise, "label_stats": dict(stats), "label": split.get("label"),
-            "split": split.get("name"), "split_fingerprint": _fingerprint(split),
-            "data_fingerprint": _data_fingerprint(data)}
+            "split": split.get("name"), "split_fingerprint": split_fingerprint(split),
+            "data_fingerprint": data_fingerprint(data)}
 
     saved = (torch.get_num_threads(), torch.are_deterministic_algorithms_enabled(),
              torch.is_deterministic_algorithms_warn_only_enabled())
@@ -289,7 +217,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
         resumed_from = 0
         if last_path.exists():
             ckpt = load_checkpoint(last_path)
-            diff = _settings_diff(ckpt, cfg, split, data)
+            diff = settings_diff(ckpt, cfg, split, data)
             if diff:
                 raise TactilepipeError(f"{last_path}: made with different settings {diff}; "
                                        f"delete it or train into another directory")
@@ -301,7 +229,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
             if device.type == "cuda" and ckpt["rng"].get("cuda"):
                 torch.cuda.set_rng_state_all(ckpt["rng"]["cuda"])
             resumed_from = state["epoch"]
-            _write_history(out_dir / "history.csv", state["history"])
+            write_history(out_dir / "history.csv", state["history"])
 
         n_batches = math.ceil(len(train_idx) / cfg.batch_size)
         if cfg.max_train_batches_per_epoch:
@@ -352,7 +280,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
             state["epoch"] = epoch
             if val_loss < state["best_val_loss"]:
                 state.update(best_val_loss=val_loss, best_epoch=epoch, bad_epochs=0)
-                _save({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "config": asdict(cfg),
+                save_checkpoint({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "config": asdict(cfg),
                        "meta": {**meta, "epoch": epoch, "val_loss": val_loss, "val_mae_n": val_mae}}, best_path)
             else:
                 state["bad_epochs"] += 1
@@ -360,10 +288,10 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
                 state["early_stopped"] = True
             rng = {"torch": torch.get_rng_state(),
                    "cuda": torch.cuda.get_rng_state_all() if device.type == "cuda" else []}
-            _save({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "optimizer": opt.state_dict(),
+            save_checkpoint({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "optimizer": opt.state_dict(),
                    "scaler": scaler.state_dict(), "rng": rng, "config": asdict(cfg),
                    "meta": {**meta, "epoch": epoch, "val_loss": val_loss, "val_mae_n": val_mae}, **state}, last_path)
-            _write_history(out_dir / "history.csv", state["history"])
+            write_history(out_dir / "history.csv", state["history"])
             if progress:
                 tqdm.write(f"epoch {epoch}: train {train_loss:.4f}  val {val_loss:.4f}  val MAE {val_mae:.3f} N  "
                            f"({epoch_s:.1f} s)", file=sys.stderr)

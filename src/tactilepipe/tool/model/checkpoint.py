@@ -1,0 +1,92 @@
+"""Checkpoints and training history of the tool-force model: what ``train`` writes, and whether an
+existing ``last.pt`` may resume a run with the given settings, split and data."""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+from dataclasses import asdict
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import torch
+
+from tactilepipe.core.atomic import atomic_path
+from tactilepipe.core.errors import InputError
+
+if TYPE_CHECKING:
+    from tactilepipe.tool.model.train import TrainConfig
+
+CHECKPOINT_FORMAT = "tactilepipe.tool.train/1"   # a file format tag, not a module path: kept so older checkpoints load
+HISTORY_COLUMNS = ["epoch", "train_loss", "val_loss", "val_mae_n", "lr", "epoch_s", "wall_s"]
+# Config fields a resumed run may change; every other field must match the checkpoint.
+RESUMABLE_CHANGES = {"max_epochs", "patience", "device", "amp", "num_threads"}
+
+
+def split_fingerprint(split: dict) -> str:
+    key = {"train": [int(i) for i in split["train"]], "validation": [int(i) for i in split["validation"]],
+           "label_stats": split["label_stats"]}
+    return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def data_fingerprint(data) -> str:
+    """Labels and a strided sample of the frames: a rebuilt dataset with other images or labels
+    must not resume a run trained on the old one."""
+    h = hashlib.sha256(np.ascontiguousarray(getattr(data, "labels", np.zeros(0))).tobytes())
+    frames = getattr(data, "frames", None)
+    if frames is not None and len(frames):
+        h.update(repr(tuple(frames.shape)).encode())
+        h.update(np.ascontiguousarray(frames[:: max(1, len(frames) // 64)]).tobytes())
+    return h.hexdigest()[:16]
+
+
+def save_checkpoint(obj: dict, path: Path) -> None:
+    with atomic_path(path) as tmp:
+        torch.save(obj, tmp)
+
+
+def write_history(path: Path, history: list[dict]) -> None:
+    with atomic_path(path) as tmp:
+        with open(tmp, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=HISTORY_COLUMNS)
+            w.writeheader()
+            w.writerows(history)
+
+
+def load_checkpoint(path: Path, raw=None) -> dict:
+    """Our checkpoint at ``path`` (``raw``: its already loaded contents)."""
+    if raw is None:
+        from tactilepipe.tool.model.public_weights import read_state
+        raw = read_state(path)
+    if not isinstance(raw, dict) or raw.get("format") != CHECKPOINT_FORMAT:
+        raise InputError(path, f"not a tool-model checkpoint (expected format {CHECKPOINT_FORMAT}, or the public "
+                               f"code's state dict)")
+    return raw
+
+
+def settings_diff(ckpt: dict, cfg: TrainConfig, split: dict, data) -> dict:
+    """Settings of ``cfg``/``split``/``data`` that differ from the checkpoint's (empty: it may resume)."""
+    # checkpoints from before these settings existed: a constant schedule, sigmoid-gated GAMs
+    old = {"lr_schedule": "constant", "gam_channel_gate": "sigmoid", **ckpt["config"]}
+    resumable = RESUMABLE_CHANGES - ({"max_epochs"} if cfg.lr_schedule == "cosine" else set())   # it sets the decay
+    diff = {k: (old.get(k), v) for k, v in asdict(cfg).items() if k not in resumable and old.get(k) != v}
+    if ckpt["meta"].get("split_fingerprint") != split_fingerprint(split):
+        diff["split"] = ("another split", "this split")
+    if ckpt["meta"].get("data_fingerprint") != data_fingerprint(data):
+        diff["data"] = ("another dataset", "this dataset")
+    return diff
+
+
+def stale_checkpoint_reason(last_path: str | Path, cfg: TrainConfig, split: dict, data) -> str | None:
+    """Why ``last_path`` cannot resume a run with these settings (None: it can, or it does not exist).
+    A workflow uses this to start again after a settings change instead of failing."""
+    if not Path(last_path).exists():
+        return None
+    try:
+        ckpt = load_checkpoint(Path(last_path))
+    except InputError as exc:
+        return str(exc)
+    diff = settings_diff(ckpt, cfg, split, data)
+    return f"made with different settings {diff}" if diff else None
