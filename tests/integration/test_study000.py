@@ -46,7 +46,7 @@ def _digest(path: Path) -> dict:
 def stand_ins(tmp_path_factory) -> dict:
     """Served files: data_normal.zip (simulated smoke trials) and best_model_normal.pth (random
     weights of the full model, depth 18, under the public key names); the simulator's trials.csv."""
-    from tactilepipe.tool.model.public_weights import to_public
+    from support.public_formats import to_public
     from tactilepipe.tool.model.network import build_model
     from support.tool_sim import simulate_public_session
     root = tmp_path_factory.mktemp("study000_sim")
@@ -271,7 +271,7 @@ def test_a_public_trial_keeps_frame_0_as_its_reference_when_its_label_is_dropped
     from tactilepipe.tool.data.dataset import build_tool_dataset
     from tactilepipe.tool.formats.trials import open_trial
     from tactilepipe.tool.data.ingest import ingest_trial, preprocess
-    from tactilepipe.tool.formats.public_layout import write_public_trial
+    from support.public_formats import write_public_trial
     rng = np.random.default_rng(1)
     left = [rng.integers(60, 200, (48, 64, 3), dtype=np.uint8) for _ in range(6)]
     right = [rng.integers(60, 200, (48, 64, 3), dtype=np.uint8) for _ in range(6)]

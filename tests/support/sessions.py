@@ -12,8 +12,8 @@ import cv2
 import numpy as np
 
 from support import ros_writer
+from support.public_formats import write_public_trial
 from tactilepipe.core.config import load_params
-from tactilepipe.tool.formats import public_layout as pl
 from tactilepipe.tool.formats import rosbag as ri
 from tactilepipe.tool.formats.native_layout import FRAME_H, FRAME_W, TrialMeta, write_calibration
 
@@ -71,8 +71,8 @@ def make_public_session(root: Path) -> Path:
     session = root / "pub"
     n = 6
     frames = [digit_frame(i, 48, 64) for i in range(n)]
-    pl.write_public_trial(session, "t0", frames, frames, [0.5, 3.0, 6.0, 9.0, 6.0, 3.0], "normal")
-    pl.write_public_trial(session, "s0", frames, frames, np.full((n, 3), 1.0), "shear")
+    write_public_trial(session, "t0", frames, frames, [0.5, 3.0, 6.0, 9.0, 6.0, 3.0], "normal")
+    write_public_trial(session, "s0", frames, frames, np.full((n, 3), 1.0), "shear")
     (session / "trials.csv").write_text("trial,tool,orientation_deg,insertion_mm\nt0,knife,5,10\ns0,knife,5,10\n")
     return session
 

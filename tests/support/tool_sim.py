@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
+from support.public_formats import write_public_trial
 from tactilepipe.core.atomic import write_text
 from tactilepipe.tool.formats import native_layout as layout
-from tactilepipe.tool.formats import public_layout as pl
 from tactilepipe.tool.sim.plan import TrialSpec, session_plan, sim_group, trial_rng, write_session_calibration
 from tactilepipe.tool.sim.trial import Trial, write_trial
 
@@ -88,7 +88,7 @@ def simulate_public_session(root: str | Path, params: dict, seed: int | None = N
             forces = np.abs(wrench[:, 2]) + noise[:, 2]
         else:
             forces = wrench[:, :3] + noise
-        pl.write_public_trial(root, spec.name, left, right, forces, spec.kind)
+        write_public_trial(root, spec.name, left, right, forces, spec.kind)
         names.append(spec.name)
     # the tools and poses, which the layout itself does not record (tool/formats/trials.py)
     rows = ["trial,tool,orientation_deg,insertion_mm"] + [

@@ -13,6 +13,7 @@ import pytest
 import torch
 import torch.nn.functional as F
 
+from support.public_formats import to_public
 from tactilepipe.core.errors import InputError
 from tactilepipe.tool.model import public_weights as pw
 from tactilepipe.tool.model.network import build_model
@@ -174,8 +175,8 @@ def test_public_state_dict_round_trips_losslessly_at_paper_depth_and_computes_th
     assert (meta["depth"], meta["gam_channel_gate"], meta["source"], meta["head"]) == (101, "none", "public", "normal")
     assert sum(p.numel() for p in model.parameters()) == 57_297_665          # the full model at depth 101
     # saved back under the public names: every key, shape and value as it came
-    back = pw.to_public(model.net.state_dict())
-    assert list(back) == list(pw.to_public(pw.from_public(public)[0])) and set(back) == set(public)
+    back = to_public(model.net.state_dict())
+    assert list(back) == list(to_public(pw.from_public(public)[0])) and set(back) == set(public)
     assert all(torch.equal(back[k], public[k]) for k in public)
     # and the outputs are those of the same weights read by their public names
     x = torch.rand(2, 4, 32, 32, generator=torch.Generator().manual_seed(3))
@@ -191,7 +192,7 @@ def test_shear_head_and_wrapped_or_prefixed_dicts_map_too():
     public = random_state(spec, seed=1)
     ours, depth, head = pw.from_public({"state_dict": {f"module.{k}": v for k, v in public.items()}})
     assert (depth, head) == (50, "shear")
-    assert set(pw.to_public(ours, head)) == set(public)
+    assert set(to_public(ours, head)) == set(public)
     x = torch.rand(2, 4, 16, 16, generator=torch.Generator().manual_seed(4))
     net = build_model("full", 50, 16, gam_channel_gate="none")
     net.load_state_dict(ours)
@@ -225,7 +226,7 @@ def test_predict_streams_a_public_checkpoint_and_asks_for_its_force_range(tmp_pa
 
     from tactilepipe.core.config import load_params
     from tactilepipe.tool.model.stream import stream_predictions
-    from tactilepipe.tool.formats.public_layout import write_public_trial
+    from support.public_formats import write_public_trial
     from support.project import REPO
     rng = np.random.default_rng(0)
     frames = [rng.integers(60, 200, (48, 64, 3), dtype=np.uint8) for _ in range(3)]
@@ -233,7 +234,7 @@ def test_predict_streams_a_public_checkpoint_and_asks_for_its_force_range(tmp_pa
     (tmp_path / "trials.csv").write_text("trial,tool,orientation_deg,insertion_mm\nt0,knife,5,10\n")
     torch.manual_seed(0)
     ckpt = tmp_path / "best_model_normal.pth"
-    torch.save(pw.to_public(build_model("full", 18, 8, gam_channel_gate="none").state_dict()), ckpt)
+    torch.save(to_public(build_model("full", 18, 8, gam_channel_gate="none").state_dict()), ckpt)
     p = load_params(REPO / "params.yaml", {"scale": "smoke"})
     with pytest.raises(InputError, match="best_model_normal.pth.*--label-range"):
         stream_predictions(ckpt, trial, "public", p)

@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
-from support import tool_sim
+from support import public_formats, tool_sim
 from tactilepipe.core.config import REPO_ROOT, deep_merge, load_params
 from tactilepipe.core.errors import ConfigError, InputError
 from tactilepipe.tool.sim import render as dr
@@ -359,13 +359,13 @@ def _smooth_frames(n: int, seed: int) -> list[np.ndarray]:
 def test_public_layout_round_trip_normal(tmp_path):
     left, right = _smooth_frames(14, 0), _smooth_frames(14, 1)
     force = np.array([0.0, 0.2, 1.0, 3.3, 7.77, 12.5, 20.0, 29.0, -0.5, 0.05, 5.0, 10.0, -2.0, 15.0])
-    tdir = pl.write_public_trial(tmp_path, "t01", left, right, force, "normal")
+    tdir = public_formats.write_public_trial(tmp_path, "t01", left, right, force, "normal")
     assert tdir == tmp_path / "data_normal" / "t01"
     assert (tdir / "tactile1" / "tactile_frame_0000.jpg").exists()
     line = (tdir / "force" / "force_data_0000.txt").read_text().strip()
     assert int(line.split(",")[-1]) == 968                               # ~968 at 0 N
     out = pl.read_public_trial(tdir, "normal")
-    keep = pl.normal_from_raw(pl.raw_from_normal(force)) >= 0
+    keep = pl.normal_from_raw(public_formats.raw_from_normal(force)) >= 0
     assert out["dropped"] == int((~keep).sum()) >= 3                     # -0.5, -2.0 and 0 N (raw 968)
     np.testing.assert_array_equal(out["index"], np.flatnonzero(keep))
     assert np.abs(out["force_n"] - force[keep]).max() <= 0.0302 / 2 + 1e-9
@@ -380,7 +380,7 @@ def test_public_layout_round_trip_shear(tmp_path):
     n = 25
     t = np.linspace(0, 3, n)
     forces = np.column_stack([2 * np.sin(t), np.cos(2 * t), -5 - t])
-    tdir = pl.write_public_trial(tmp_path, "s01", _smooth_frames(n, 2), _smooth_frames(n, 3), forces, "shear")
+    tdir = public_formats.write_public_trial(tmp_path, "s01", _smooth_frames(n, 2), _smooth_frames(n, 3), forces, "shear")
     assert tdir == tmp_path / "data_shear" / "s01"
     out = pl.read_public_trial(tdir, "shear")
     assert out["dropped"] == 0 and len(out["frames_left"]) == n
@@ -410,7 +410,7 @@ def test_simulated_public_session_reads_back(tmp_path, params):
 
 @pytest.fixture
 def public_trial(tmp_path) -> Path:
-    return pl.write_public_trial(tmp_path, "t", _smooth_frames(5, 4), _smooth_frames(5, 5),
+    return public_formats.write_public_trial(tmp_path, "t", _smooth_frames(5, 4), _smooth_frames(5, 5),
                                  np.array([1.0, 2.0, 3.0, 4.0, 5.0]), "normal")
 
 
@@ -448,7 +448,7 @@ def test_public_reader_missing_folder_and_bad_shear_line(public_trial, tmp_path)
     shutil.rmtree(public_trial / "tactile2")
     with pytest.raises(InputError, match="tactile2"):
         pl.read_public_trial(public_trial, "normal")
-    tdir = pl.write_public_trial(tmp_path, "s", _smooth_frames(3, 6), _smooth_frames(3, 7),
+    tdir = public_formats.write_public_trial(tmp_path, "s", _smooth_frames(3, 6), _smooth_frames(3, 7),
                                  np.ones((3, 3)), "shear")
     (tdir / "force" / "force_data_0001.txt").write_text("1.0,2.0\n")
     with pytest.raises(InputError, match="fx,fy,fz"):

@@ -241,18 +241,6 @@ def integrate_params(force: np.ndarray, dt: float, sim: dict) -> np.ndarray:
                      sim["creep_substeps"])
 
 
-def step_response(t: np.ndarray, prony: Prony) -> np.ndarray:
-    """Exact reading for a unit force step at t = 0 (modal solution), for tests and the benchmark."""
-    a, b = prony.system()
-    g = np.asarray(prony.fractions, float)
-    lam, vec = np.linalg.eig(a)
-    # s(t) = -A^-1 b + V e^{lam t} V^-1 (A^-1 b)   with s(0) = 0
-    s_inf = -np.linalg.solve(a, b)
-    coef = np.linalg.solve(vec, -s_inf)
-    s = s_inf[None, :] + np.real((vec[None, :, :] * (coef * np.exp(np.outer(t, lam)))[:, None, :]).sum(-1))
-    return prony.g_inf + s @ g
-
-
 # --- integrator benchmark: error against run time ------------------------------------------------
 
 def benchmark_load(t: np.ndarray, grip_n: float = 2.0, tap_n: float = 1.0) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""The public dataset layout of study 000: writer (for simulated data) and reader (the importer).
+"""The public dataset layout of study 000 and its reader (the importer).
 
     <root>/data_normal/<trial>/tactile1/tactile_frame_NNNN.jpg    first DIGIT (.jpg, .jpeg or .png)
                                tactile2/tactile_frame_NNNN.jpg    second DIGIT
@@ -23,7 +23,6 @@ import cv2
 import numpy as np
 from scipy.signal import savgol_filter
 
-from tactilepipe.core.atomic import atomic_path, write_text
 from tactilepipe.core.errors import ArgumentError, InputError
 from tactilepipe.tool.formats.imagefile import read_image
 
@@ -37,16 +36,10 @@ FORCE_RE = re.compile(r"^force_data_(\d+)\.txt$")
 NORMAL_SLOPE_N = -0.0302            # N per raw count (the public code's conversion)
 NORMAL_INTERCEPT_N = 29.229         # N at raw count 0
 SAVGOL_WINDOW, SAVGOL_ORDER = 11, 2
-JPEG_QUALITY = 95
 
 
 def normal_from_raw(raw) -> np.ndarray:
     return NORMAL_SLOPE_N * np.asarray(raw, np.float64) + NORMAL_INTERCEPT_N
-
-
-def raw_from_normal(force_n) -> np.ndarray:
-    """The public rig's raw Arduino count for a normal force (N), rounded to a whole count."""
-    return np.rint((np.asarray(force_n, np.float64) - NORMAL_INTERCEPT_N) / NORMAL_SLOPE_N).astype(np.int64)
 
 
 def smooth_shear(shear_n: np.ndarray) -> np.ndarray:
@@ -62,37 +55,6 @@ def smooth_shear(shear_n: np.ndarray) -> np.ndarray:
 def _check_kind(kind: str) -> None:
     if kind not in KIND_DIRS:
         raise ArgumentError(f"kind '{kind}' must be one of {sorted(KIND_DIRS)}")
-
-
-def write_public_trial(root: str | Path, trial_name: str, frames_left, frames_right, forces, kind: str,
-                       time_ms=None) -> Path:
-    """Write one trial in the public layout; returns its folder.
-
-    frames_*: sequences of BGR uint8 images (JPEG, quality 95); forces: normal -> (n,) normal force
-    in N (written as the raw count the public conversion maps back to it); shear -> (n, 3) fx, fy,
-    fz in N. time_ms: optional first field of the normal lines (default: the frame index).
-    """
-    _check_kind(kind)
-    n = len(frames_left)
-    forces = np.asarray(forces, np.float64)
-    want = (n,) if kind == "normal" else (n, 3)
-    if len(frames_right) != n or forces.shape != want:
-        raise ArgumentError(f"{trial_name}: {n} left frames, {len(frames_right)} right frames and forces "
-                            f"of shape {forces.shape} (expected {want})")
-    tdir = Path(root) / KIND_DIRS[kind] / trial_name
-    for sub, frames in zip(SENSOR_DIRS, (frames_left, frames_right)):
-        for i, img in enumerate(frames):
-            ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
-            if not ok:
-                raise RuntimeError(f"JPEG encoding failed for frame {i} of {trial_name}")
-            with atomic_path(tdir / sub / FRAME_FILE.format(i)) as tmp:
-                tmp.write_bytes(buf.tobytes())
-    first = np.arange(n) if time_ms is None else np.asarray(time_ms, np.int64)
-    raw = raw_from_normal(forces) if kind == "normal" else None
-    for i in range(n):
-        line = f"{first[i]},{raw[i]}" if kind == "normal" else ",".join(f"{v:.4f}" for v in forces[i])
-        write_text(tdir / FORCE_DIR / FORCE_FILE.format(i), line + "\n")
-    return tdir
 
 
 def _indexed(folder: Path, pattern: re.Pattern, what: str) -> dict[int, Path]:

@@ -144,11 +144,6 @@ def from_public(state, source: str | Path = "checkpoint") -> tuple[dict, int, st
     return {k: mapped[k] for k in ref}, depth, head
 
 
-def to_public(state: dict, head: str = "normal") -> dict:
-    """Our ``full`` model's state dict under the public code's key names."""
-    return {to_public_key(k, head): v for k, v in state.items()}
-
-
 class PublicInput(nn.Module):
     """Our model fed as the public code fed its network: frames in [0, 1] scaled to [-1, 1]."""
 
