@@ -1,0 +1,66 @@
+"""The repository as a newcomer meets it: a short README whose links and promised places exist,
+short library modules, and no pointer to material outside the repository."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+
+import pytest
+
+from tactilepipe.core.config import REPO_ROOT
+
+LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
+# spelled in two parts so that this file does not match itself
+OUTSIDE = [re.compile(p) for p in (r"\.\./" + "shared", "REFERENCE" + r"\.md", r"\b[Ii]ssue" + r" #?\d+")]
+
+
+def tracked_text_files():
+    try:
+        names = subprocess.run(["git", "ls-files"], cwd=REPO_ROOT, capture_output=True, text=True,
+                               check=True).stdout.split()
+    except (OSError, subprocess.CalledProcessError):
+        pytest.skip("not a git checkout")
+    for name in names:
+        path = REPO_ROOT / name
+        if path.suffix in {".png", ".pdf", ".npy", ".parquet", ".pt", ".bag", ".jpg"} or not path.is_file():
+            continue
+        try:
+            yield name, path.read_text()
+        except UnicodeDecodeError:
+            continue
+
+
+def test_readme_is_short_and_its_links_exist():
+    readme = REPO_ROOT / "README.md"
+    assert len(readme.read_bytes()) <= 8000
+    for target in LINK.findall(readme.read_text()):
+        if "://" not in target:
+            assert (REPO_ROOT / target).exists(), f"README.md links to missing {target}"
+
+
+def test_docs_links_exist():
+    for page in (REPO_ROOT / "docs").rglob("*.md"):
+        for target in LINK.findall(page.read_text()):
+            if "://" not in target and not target.startswith("mailto:"):
+                assert (page.parent / target).exists(), f"{page.relative_to(REPO_ROOT)} links to missing {target}"
+
+
+def test_the_places_the_readme_promises_exist():
+    src = REPO_ROOT / "src" / "tactilepipe"
+    assert "class ToolFrames" in (src / "tool" / "data" / "loader.py").read_text()
+    assert re.search(r"^VARIANTS\b", (src / "tool" / "model" / "network.py").read_text(), re.M)
+    figures = list((src / "tool" / "report").glob("figures_*.py"))
+    assert figures and all("savefig" in f.read_text() or "save_figure" in f.read_text() for f in figures)
+
+
+def test_library_modules_are_short():
+    long = {str(p.relative_to(REPO_ROOT)): n for p in (REPO_ROOT / "src").rglob("*.py")
+            if (n := len(p.read_text().splitlines())) > 400}
+    assert not long, f"modules over 400 lines: {long}"
+
+
+def test_nothing_points_outside_the_repository():
+    hits = [f"{name}:{text[:m.start()].count(chr(10)) + 1}: {m.group(0)}"
+            for name, text in tracked_text_files() for rx in OUTSIDE for m in rx.finditer(text)]
+    assert not hits, hits
