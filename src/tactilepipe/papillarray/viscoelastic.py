@@ -129,22 +129,6 @@ def step_matrices(prony: Prony, h: float, method: str) -> tuple[np.ndarray, np.n
     raise ConfigError(f"simulate_volume.creep_integrator '{method}' must be one of {list(METHODS)}")
 
 
-def _explicit_step(prony, h, method, s, f0, f1):
-    """One literal step of an explicit method (what the benchmark times), s (C, m), f (C,)."""
-    a, b = prony.system()
-
-    def rhs(state, f):
-        return state @ a.T + f[:, None] * b[None, :]
-    if method == "euler":
-        return s + h * rhs(s, f0)
-    fm = 0.5 * (f0 + f1)
-    k1 = rhs(s, f0)
-    k2 = rhs(s + h / 2 * k1, fm)
-    k3 = rhs(s + h / 2 * k2, fm)
-    k4 = rhs(s + h * k3, f1)
-    return s + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-
-
 def sample_map(prony: Prony, dt: float, method: str, substeps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(Phi, P, Q): one sample period of ``substeps`` steps, s_next = Phi s + P f_n + Q f_{n+1}
     (the load linear between the samples, evaluated at every substep)."""
@@ -160,16 +144,15 @@ def sample_map(prony: Prony, dt: float, method: str, substeps: int) -> tuple[np.
 
 
 def integrate(force: np.ndarray, dt: float, prony: Prony, method: str = "exponential",
-              substeps: int = 1, check_stability: bool = True, loop: bool = False) -> np.ndarray:
+              substeps: int = 1, check_stability: bool = True) -> np.ndarray:
     """Sensor reading of load-driven viscoelastic pillars.
 
     force: (T, ...) true pillar forces at samples dt apart (starting from rest: relaxed, unloaded).
     Returns the readings, same shape, float64.
 
-    The chosen method's step is an affine map of (s, f), so by default a whole sample period is one
-    map and the recursion runs per mode with ``scipy.signal.lfilter`` (fast, same numbers as
-    stepping). ``loop=True`` steps in Python instead, the explicit methods stage by stage: what the
-    integrator benchmark times, so that every method is timed the same way.
+    The chosen method's step is an affine map of (s, f), so a whole sample period is one map and the
+    recursion runs per mode with ``scipy.signal.lfilter``: the same numbers as stepping, much faster
+    (``benchmarks/bench_integrators.py`` times both and prints their difference).
     """
     force = np.asarray(force, np.float64)
     if not prony.active or len(force) == 0:
@@ -191,30 +174,8 @@ def integrate(force: np.ndarray, dt: float, prony: Prony, method: str = "exponen
     f = force.reshape(len(force), -1)
     g = np.asarray(prony.fractions, float)
     with np.errstate(over="ignore", invalid="ignore"):
-        if loop:
-            out = _loop(f, h, substeps, prony, method, g)
-        else:
-            out = _modal(f, dt, substeps, prony, method, g)
+        out = _modal(f, dt, substeps, prony, method, g)
     return out.reshape(shape)
-
-
-def _loop(f, h, substeps, prony, method, g):
-    phi, g0, g1 = step_matrices(prony, h, method)
-    phi_t = phi.T
-    s = np.zeros((f.shape[1], len(g)))
-    out = np.empty_like(f)
-    out[0] = prony.g_inf * f[0]
-    for n in range(len(f) - 1):
-        fa, fb = f[n], f[n + 1]
-        for k in range(substeps):
-            lo = fa + (fb - fa) * (k / substeps)
-            hi = fa + (fb - fa) * ((k + 1) / substeps)
-            if method in ("euler", "rk4"):
-                s = _explicit_step(prony, h, method, s, lo, hi)
-            else:
-                s = s @ phi_t + lo[:, None] * g0[None, :] + hi[:, None] * g1[None, :]
-        out[n + 1] = prony.g_inf * fb + s @ g
-    return out
 
 
 def _modal(f, dt, substeps, prony, method, g):
@@ -239,78 +200,3 @@ def integrate_params(force: np.ndarray, dt: float, sim: dict) -> np.ndarray:
     """``integrate`` with the simulate_volume parameters (no creep when creep_fractions is empty)."""
     return integrate(force, dt, Prony.from_params(sim), sim["creep_integrator"],
                      sim["creep_substeps"])
-
-
-# --- integrator benchmark: error against run time ------------------------------------------------
-
-def benchmark_load(t: np.ndarray, grip_n: float = 2.0, tap_n: float = 1.0) -> np.ndarray:
-    """Test load of one pillar (N): the gripper closes over 0.6 s (the lift simulator's grip ramp),
-    then a 20-ms minimum-jerk load step (a quick tap / weight set down) at 1.5 s, held."""
-    def mj(x):
-        x = np.clip(x, 0.0, 1.0)
-        return 10 * x**3 - 15 * x**4 + 6 * x**5
-    return grip_n * mj((t - 0.3) / 0.6) + tap_n * mj((t - 1.5) / 0.02)
-
-
-def reference_reading(prony: Prony, duration_s: float, h_ref: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
-    """(t, reading) of ``benchmark_load`` by the exponential integrator on a 1-us grid (the load
-    evaluated exactly there; its linear interpolation error is below 1e-8 N at this step)."""
-    n = int(round(duration_s / h_ref)) + 1
-    t = np.arange(n) * h_ref
-    return t, integrate(benchmark_load(t), h_ref, prony, "exponential")
-
-
-def benchmark(prony: Prony, rates_hz=(100, 250, 500, 1000), substeps=(1, 2, 4, 8, 16),
-              duration_s: float = 3.0, channels: int = 54, repeats: int = 3, methods=METHODS):
-    """Error against run time of every integrator and step size, against the fine-step reference.
-
-    Per (method, sample rate, substeps): max and RMS |reading - reference| at the samples (N; the
-    reference solves the continuous load, so this includes the error of knowing the load only at
-    the samples), ``integration_error_n``: max error against the exact solution for the sampled
-    load taken linear between samples (the integrator's own error; the exponential integrator's is
-    round-off), whether the step is within the method's stability limit, whether it diverged, and the wall time
-    of one simulated lift's worth of channels (``channels`` pillar axes over ``duration_s``) stepped
-    in Python (``loop_ms``, every method timed the same way) and by the simulator's modal
-    recursion (``modal_ms``). Returns a pandas DataFrame.
-    """
-    import time
-
-    import pandas as pd
-
-    t_ref, r_ref = reference_reading(prony, duration_s)
-    h_ref = t_ref[1] - t_ref[0]
-    rows = []
-    for rate in rates_hz:
-        dt = 1.0 / rate
-        n = int(round(duration_s * rate)) + 1
-        t = np.arange(n) * dt
-        ref = r_ref[np.rint(t / h_ref).astype(np.int64)]
-        load = benchmark_load(t)
-        many = np.repeat(load[:, None], channels, axis=1)
-        exact = integrate(load, dt, prony, "exponential", 1)
-        for method in methods:
-            limit = stability_limit_s(prony, method)
-            for k in substeps:
-                reading = integrate(load, dt, prony, method, k, check_stability=False)
-                err = np.abs(reading - ref)
-                diverged = (not np.isfinite(err).all()) or err.max() > 1e3 * np.abs(load).max()
-                timings = {}
-                for name, loop in (("loop_ms", True), ("modal_ms", False)):
-                    integrate(many[:3], dt, prony, method, k, check_stability=False, loop=loop)  # warm-up
-                    best = np.inf
-                    for _ in range(repeats):
-                        t0 = time.perf_counter()
-                        integrate(many, dt, prony, method, k, check_stability=False, loop=loop)
-                        best = min(best, time.perf_counter() - t0)
-                        if best > 1.0:
-                            break
-                    timings[name] = best * 1e3
-                rows.append({"method": method, "rate_hz": int(rate), "substeps": int(k),
-                             "step_ms": dt / k * 1e3, "within_stability_limit": bool(dt / k <= limit),
-                             "diverged": bool(diverged),
-                             "max_error_n": float("inf") if diverged else float(err.max()),
-                             "rms_error_n": float("inf") if diverged else float(np.sqrt(np.mean(err**2))),
-                             "integration_error_n": float("inf") if diverged
-                             else float(np.abs(reading - exact).max()),
-                             **timings})
-    return pd.DataFrame(rows)
