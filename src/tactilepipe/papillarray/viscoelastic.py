@@ -36,8 +36,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm
-from scipy.signal import lfilter
 
 from tactilepipe.core.errors import ConfigError
 
@@ -105,6 +103,8 @@ def step_matrices(prony: Prony, h: float, method: str) -> tuple[np.ndarray, np.n
     m = len(b)
     eye = np.eye(m)
     if method == "exponential":
+        from scipy.linalg import expm     # here, not at the top: the workflow imports this module
+                                          # when it plans jobs, and scipy costs each Snakemake start
         aug = np.zeros((m + 2, m + 2))
         aug[:m, :m], aug[:m, m], aug[m, m + 1] = a, b, 1.0 / h
         e = expm(aug * h)                   # u' = (f_end - f_start) / h over the step
@@ -181,6 +181,8 @@ def integrate(force: np.ndarray, dt: float, prony: Prony, method: str = "exponen
 def _modal(f, dt, substeps, prony, method, g):
     """z_n = s_n - Q f_n follows z_{n+1} = Phi z_n + (Phi Q + P) f_n; in the eigenbasis of A (shared
     by Phi, real: see stability_limit_s) every mode is a first-order recursion."""
+    from scipy.signal import lfilter      # here, not at the top: see step_matrices
+
     big, p, q = sample_map(prony, dt, method, substeps)
     lam, vec = np.linalg.eig(prony.system()[0])
     vec = np.real(vec)
