@@ -2,6 +2,7 @@
 import json
 import shlex
 import sys
+from functools import cache
 from pathlib import Path
 
 import yaml
@@ -112,22 +113,29 @@ def is_simulated(session):
     return session.startswith("sim-")
 
 
+# The session lists below are asked for once per job while Snakemake builds its graph; each is
+# computed once per Snakemake start (`cache`). Nothing in the workflow writes into a real
+# session's folder, and a simulated session's names come from its plan, not from the disk.
+
+
+@cache
 def volume_bag_stems(session):
     """Bags of a volume session: planned by the simulator, or listed in the session's lifts.csv."""
     if is_simulated(session):
-        return [lift.name for lift in session_plan(P["simulate_volume"])]
-    return [Path(row["bag"]).stem for row in read_session_labels(f"raw/volume/{session}")]
+        return tuple(lift.name for lift in session_plan(P["simulate_volume"]))
+    return tuple(Path(row["bag"]).stem for row in read_session_labels(f"raw/volume/{session}"))
 
 
 def volume_shards():
     return [f"{VOLUME}/shards/{s}/{stem}.parquet" for s in P["volume_sessions"] for stem in volume_bag_stems(s)]
 
 
+@cache
 def drift_bag_stems(session):
     """Bags of the drift session: planned by the simulator, or the .bag files in its folder."""
     if is_simulated(session):
-        return drift_plan(P)
-    stems = sorted(p.stem for p in Path(f"raw/drift/{session}").glob("*.bag"))
+        return tuple(drift_plan(P))
+    stems = tuple(sorted(p.stem for p in Path(f"raw/drift/{session}").glob("*.bag")))
     if not stems:
         raise WorkflowError(f"drift_session '{session}': no .bag files in raw/drift/{session}/")
     return stems
@@ -193,11 +201,17 @@ def provenance_inputs(scene):
     return sorted({f for s in stages for f in stage_code(s)}) + [f"{PARAM_STAMPS}/{s}.json" for s in stages]
 
 
+@cache
 def tool_trials(session):
     """(name, path, format) of a tool session's trials: planned by the simulator, or found on disk."""
     if is_simulated(session):
-        return [(t.name, f"raw/tool/{session}/{t.name}", "native") for t in tool_plan(P)]
-    return [(name, str(path), fmt) for name, path, fmt in list_tool_trials(f"raw/tool/{session}")]
+        return tuple((t.name, f"raw/tool/{session}/{t.name}", "native") for t in simulated_tool_plan())
+    return tuple((name, str(path), fmt) for name, path, fmt in list_tool_trials(f"raw/tool/{session}"))
+
+
+@cache
+def simulated_tool_plan():
+    return tuple(tool_plan(P))
 
 
 def tool_trial_names(session):
@@ -230,10 +244,11 @@ def tool_trial_input(w):
     return files
 
 
+@cache
 def _tool_trial_meta(session, name):
     """(kind, tool) of a trial, from the simulator's plan or the trial's own metadata."""
     if is_simulated(session):
-        t = next(t for t in tool_plan(P) if t.name == name)
+        t = next(t for t in simulated_tool_plan() if t.name == name)
         return t.kind, t.tool
     path, fmt = _tool_trial(session, name)
     if fmt == "native":
