@@ -1,7 +1,8 @@
 """Scale-out: per-rule resources, the paper-scale dry run with its compute estimate,
 device selection and mixed precision, and the smoke scale through a real single-node SLURM
-cluster (`slurm` marker, `make test-slurm`: needs root; installs slurm-wlm and munge with apt when
-missing; not part of `make test`: 43 min on this shared 2-core machine, local run included)."""
+cluster (`slurm` marker: needs root; installs slurm-wlm and munge with apt when missing). That test
+runs only with TACTILEPIPE_SLURM_TEST=1: `.ci/run` sets it for `make test`, where the run through
+the cluster is compared with the session's shared smoke build; `make test-slurm` runs it alone."""
 
 from __future__ import annotations
 
@@ -248,20 +249,18 @@ def slurm_cluster():
 
 
 @pytest.mark.slurm
-def test_smoke_scale_through_slurm_equals_the_local_run(slurm_cluster, tmp_path):
+def test_smoke_scale_through_slurm_equals_the_local_run(slurm_cluster, smoke_build, tmp_path):
+    """The local run is the test session's shared smoke build (tests/integration/conftest.py): the
+    cluster runs a copy of the same project, with the same parameter file, through the scheduler."""
     jobcomp = slurm_cluster / "jobcomp.log"
     before = jobcomp.read_text().count("\n") if jobcomp.exists() else 0
 
-    (tmp_path / "local").mkdir()
     (tmp_path / "cluster").mkdir()
-    local = copy_project(tmp_path / "local")
-    # each folder runs its own copy of the package (support.project.run sets PYTHONPATH; sbatch
-    # --export=ALL passes it on), so both runs use the same code even while the working tree is edited
-    run([str(BIN / "snakemake"), "--cores", "2", "--config", "scale=smoke"], local)
-
-    cluster = copy_project(tmp_path / "cluster")
-    proc = run([str(BIN / "snakemake"), "--workflow-profile", "workflow/profiles/slurm", "--config", "scale=smoke",
-                *SLURM_FLAGS], cluster)
+    # the copy runs its own copy of the package (support.project.run sets PYTHONPATH; sbatch
+    # --export=ALL passes it on), so it runs the code the smoke build ran even while the working
+    # tree is edited
+    cluster = copy_project(tmp_path / "cluster", scale="smoke")
+    proc = run([str(BIN / "snakemake"), "--workflow-profile", "workflow/profiles/slurm", *SLURM_FLAGS], cluster)
     log = proc.stdout + proc.stderr
 
     # every job went through the scheduler: an sbatch job id each, a SLURM log each, and the
@@ -280,4 +279,4 @@ def test_smoke_scale_through_slurm_equals_the_local_run(slurm_cluster, tmp_path)
     header = train_log[train_log.index("rule tool_train:"):].split("Shell command:")[0]
     # Snakemake names the threads in a job's header only when they are more than one
     assert (f"threads: {threads}" in header) if threads > 1 else ("threads:" not in header)
-    assert comparable(cluster) == comparable(local)
+    assert comparable(cluster) == comparable(smoke_build)
