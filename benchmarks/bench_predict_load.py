@@ -47,7 +47,7 @@ def untrained_checkpoint(p: dict, path: Path) -> Path:
                                   seed=p["seed"])
     meta = {"variant": "full", "depth": tt["depth"], "image_size": size, "normalise": "minmax",
             "label_stats": {"min": 0.0, "max": 30.0, "mean": 5.0, "std": 5.0}}
-    torch.save({"format": CHECKPOINT_FORMAT, "model": build_model("full", tt["depth"], size, tt["gam_channel_gate"]).state_dict(),
+    torch.save({"format": CHECKPOINT_FORMAT, "model": build_model("full", tt["depth"], size, tt["gam_channel_gate"], tt["width"]).state_dict(),
                 "config": dataclasses.asdict(cfg), "meta": meta}, path)
     return path
 

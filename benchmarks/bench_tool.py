@@ -152,7 +152,7 @@ def _untrained_checkpoint(p: dict, path: Path) -> Path:
     tt, size = p["tool_train"], p["tool_ingest"]["image_size"]
     cfg = TrainConfig.from_params(tt, variant="full", depth=tt["depth"], image_size=size, normalise="minmax",
                                   seed=p["seed"])
-    model = build_model("full", tt["depth"], size, tt["gam_channel_gate"])
+    model = build_model("full", tt["depth"], size, tt["gam_channel_gate"], tt["width"])
     meta = {"variant": "full", "depth": tt["depth"], "image_size": size, "normalise": "minmax",
             "label_stats": {"min": 0.0, "max": 30.0, "mean": 5.0, "std": 5.0}}
     torch.save({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "config": dataclasses.asdict(cfg),

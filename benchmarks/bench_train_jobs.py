@@ -27,7 +27,7 @@ from tactilepipe.tool.model.train import make_optimizer, to_input
 REPO = Path(__file__).resolve().parents[1]
 
 
-def train_throughput(variant: str, depth: int, image_size: int, batch_size: int, gam_channel_gate: str,
+def train_throughput(variant: str, depth: int, image_size: int, batch_size: int, gam_channel_gate: str, width: int,
                      steps: int = 3, channels_last: bool = True, num_threads: int | None = None,
                      seed: int = 0) -> float:
     """Training speed in frame pairs per second (forward + backward + Adam step on random CPU
@@ -37,7 +37,7 @@ def train_throughput(variant: str, depth: int, image_size: int, batch_size: int,
         if num_threads:
             torch.set_num_threads(num_threads)
         torch.manual_seed(seed)
-        model = build_model(variant, depth, image_size, gam_channel_gate)
+        model = build_model(variant, depth, image_size, gam_channel_gate, width)
         if channels_last:
             model = model.to(memory_format=torch.channels_last)
         opt = make_optimizer(model, 2e-4)
@@ -60,8 +60,8 @@ def train_throughput(variant: str, depth: int, image_size: int, batch_size: int,
 
 
 def _job(args: tuple) -> float:
-    variant, depth, size, batch, gate, steps, threads = args
-    return train_throughput(variant, depth, size, batch, gate, steps=steps, num_threads=threads)
+    variant, depth, size, batch, gate, width, steps, threads = args
+    return train_throughput(variant, depth, size, batch, gate, width, steps=steps, num_threads=threads)
 
 
 def main() -> None:
@@ -70,7 +70,7 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=40)
     args = ap.parse_args()
     tt = load_params(REPO / "params.yaml", {"scale": "default"})["tool_train"]
-    spec = (args.variant, tt["depth"], tt["image_size"], tt["batch_size"], tt["gam_channel_gate"], args.steps)
+    spec = (args.variant, tt["depth"], tt["image_size"], tt["batch_size"], tt["gam_channel_gate"], tt["width"], args.steps)
     ctx = mp.get_context("spawn")
     with ctx.Pool(1) as pool:
         t = time.perf_counter()

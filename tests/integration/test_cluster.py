@@ -74,9 +74,9 @@ def test_a_wrong_resource_key_stops_with_its_name(tmp_path):
 # ----------------------------------------------------------------------------- compute estimate
 
 def test_forward_flops_follow_the_image_area():
-    f112, f224 = forward_flops("full", 101, 112, "sigmoid"), forward_flops("full", 101, 224, "sigmoid")
+    f112, f224 = forward_flops("full", 101, 112, "sigmoid", 64), forward_flops("full", 101, 224, "sigmoid", 64)
     assert 3.6 < f224 / f112 < 4.4                 # convolutions: cost grows with the image area
-    assert forward_flops("single", 101, 224, "sigmoid") < f224  # one finger's encoder and GAM less
+    assert forward_flops("single", 101, 224, "sigmoid", 64) < f224  # one finger's encoder and GAM less
 
 
 def test_estimate_report_counts_jobs_and_models_training():

@@ -47,7 +47,7 @@ def stand_ins(tmp_path_factory) -> dict:
     """Served files: data_normal.zip (simulated smoke trials) and best_model_normal.pth (random
     weights of the full model, depth 18, under the public key names); the simulator's trials.csv."""
     from support.public_formats import to_public
-    from tactilepipe.tool.model.network import build_model
+    from tactilepipe.tool.model.network import build_model, PAPER_WIDTH
     from support.tool_sim import simulate_public_session
     root = tmp_path_factory.mktemp("study000_sim")
     params = load_params(REPO / "params.yaml", {"scale": "smoke"})
@@ -56,7 +56,7 @@ def stand_ins(tmp_path_factory) -> dict:
     served.mkdir()
     _zip_public(root / "sim", "data_normal", served / "data_normal.zip")
     torch.manual_seed(0)
-    torch.save(to_public(build_model("full", 18, 32, gam_channel_gate="none").state_dict()),
+    torch.save(to_public(build_model("full", 18, 32, gam_channel_gate="none", width=PAPER_WIDTH).state_dict()),
                served / "best_model_normal.pth")
     rows = list(csv.DictReader((root / "sim" / "trials.csv").open()))
     normal = sorted(p.name for p in (root / "sim" / "data_normal").iterdir())

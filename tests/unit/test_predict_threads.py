@@ -9,7 +9,7 @@ import io
 import torch
 
 from tactilepipe.core.config import load_params
-from tactilepipe.tool.model.network import build_model
+from tactilepipe.tool.model.network import build_model, PAPER_WIDTH
 from tactilepipe.tool.model.stream import stream_predictions
 from tactilepipe.tool.model.checkpoint import CHECKPOINT_FORMAT
 
@@ -23,7 +23,7 @@ def test_predict_streams_on_the_configured_threads_and_restores_them(tmp_path, m
     cfg = quick_cfg(image_size=16)
     meta = {"variant": "full", "depth": 18, "image_size": 16, "normalise": "minmax",
             "label_stats": {"min": 0.0, "max": 30.0, "mean": 5.0, "std": 5.0}}
-    torch.save({"format": CHECKPOINT_FORMAT, "model": build_model("full", 18, 16, "sigmoid").state_dict(),
+    torch.save({"format": CHECKPOINT_FORMAT, "model": build_model("full", 18, 16, "sigmoid", PAPER_WIDTH).state_dict(),
                 "config": dataclasses.asdict(cfg), "meta": meta}, tmp_path / "m.pt")
     seen = []
     real = torch.set_num_threads

@@ -16,7 +16,7 @@ import torch.nn.functional as F
 from support.public_formats import to_public
 from tactilepipe.core.errors import InputError
 from tactilepipe.tool.model import public_weights as pw
-from tactilepipe.tool.model.network import build_model
+from tactilepipe.tool.model.network import build_model, PAPER_WIDTH
 from tactilepipe.tool.model.inference import load_model
 
 # Computed with the model code before the gate option existed (seed 2026, 16 px; the zero-initialised
@@ -43,18 +43,18 @@ def _fingerprint(model) -> tuple[str, list[float]]:
 @pytest.mark.parametrize("variant,depth", sorted(BEFORE))
 def test_default_gate_builds_and_computes_as_before(variant, depth):
     torch.manual_seed(2026)
-    digest, out = _fingerprint(build_model(variant, depth, 16, "sigmoid"))
+    digest, out = _fingerprint(build_model(variant, depth, 16, "sigmoid", PAPER_WIDTH))
     assert digest == BEFORE[variant, depth][0]
     assert out == pytest.approx(BEFORE[variant, depth][1], rel=1e-5, abs=1e-8)
 
 
 def test_ungated_model_has_the_same_parameters_and_other_outputs():
     torch.manual_seed(2026)
-    digest, out = _fingerprint(build_model("full", 18, 16, gam_channel_gate="none"))
+    digest, out = _fingerprint(build_model("full", 18, 16, gam_channel_gate="none", width=PAPER_WIDTH))
     assert digest == BEFORE["full", 18][0]            # same parameters, same initial draws
     assert out != pytest.approx(BEFORE["full", 18][1], rel=1e-3)
     with pytest.raises(ValueError, match="gam_channel_gate"):
-        build_model("full", 18, 16, gam_channel_gate="tanh")
+        build_model("full", 18, 16, gam_channel_gate="tanh", width=PAPER_WIDTH)
 
 
 # --- the public network, by its key names ----------------------------------------------------
@@ -194,7 +194,7 @@ def test_shear_head_and_wrapped_or_prefixed_dicts_map_too():
     assert (depth, head) == (50, "shear")
     assert set(to_public(ours, head)) == set(public)
     x = torch.rand(2, 4, 16, 16, generator=torch.Generator().manual_seed(4))
-    net = build_model("full", 50, 16, gam_channel_gate="none")
+    net = build_model("full", 50, 16, gam_channel_gate="none", width=PAPER_WIDTH)
     net.load_state_dict(ours)
     with torch.no_grad():
         torch.testing.assert_close(pw.PublicInput(net).eval().double()(x.double()),
@@ -234,7 +234,7 @@ def test_predict_streams_a_public_checkpoint_and_asks_for_its_force_range(tmp_pa
     (tmp_path / "trials.csv").write_text("trial,tool,orientation_deg,insertion_mm\nt0,knife,5,10\n")
     torch.manual_seed(0)
     ckpt = tmp_path / "best_model_normal.pth"
-    torch.save(to_public(build_model("full", 18, 8, gam_channel_gate="none").state_dict()), ckpt)
+    torch.save(to_public(build_model("full", 18, 8, gam_channel_gate="none", width=PAPER_WIDTH).state_dict()), ckpt)
     p = load_params(REPO / "params.yaml", {"scale": "smoke"})
     with pytest.raises(InputError, match="best_model_normal.pth.*--label-range"):
         stream_predictions(ckpt, trial, "public", p)

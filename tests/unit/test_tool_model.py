@@ -14,7 +14,8 @@ import torch
 
 from tactilepipe.core.errors import ArgumentError, TactilepipeError
 from tactilepipe.tool.data.loader import ToolFrames
-from tactilepipe.tool.model.network import DEPTHS, MIN_IMAGE_SIZE, VARIANTS, TrimmedConv2d, build_model, count_parameters
+from tactilepipe.tool.model.network import (DEPTHS, MIN_IMAGE_SIZE, PAPER_WIDTH, VARIANTS, TrimmedConv2d, build_model,
+                                            count_parameters)
 from tactilepipe.tool.model.train import scheduled_lr, train
 from tactilepipe.tool.model.inference import latency_ms, load_model, predict
 
@@ -45,7 +46,7 @@ def test_parameter_counts_at_paper_scale():
     for variant in VARIANTS:
         for depth in DEPTHS:
             with torch.device("meta"):          # no memory, no init cost: counts only
-                counts[variant, depth] = count_parameters(build_model(variant, depth, 224, "sigmoid"))
+                counts[variant, depth] = count_parameters(build_model(variant, depth, 224, "sigmoid", PAPER_WIDTH))
     print("\nparameters at 224 px (M)\n" + "variant  " + "".join(f"{d:>10}" for d in DEPTHS))
     for variant in VARIANTS:
         print(f"{variant:8} " + "".join(f"{counts[variant, d] / 1e6:10.2f}" for d in DEPTHS))
@@ -60,7 +61,7 @@ def test_parameter_counts_at_paper_scale():
 @pytest.mark.parametrize("variant", list(VARIANTS))
 def test_forward_shape_at_224_depth18(variant):
     torch.manual_seed(0)
-    model = build_model(variant, 18, 224, "sigmoid").eval()
+    model = build_model(variant, 18, 224, "sigmoid", PAPER_WIDTH).eval()
     with torch.no_grad():
         out = model(torch.rand(1, 4, 224, 224))
     assert out.shape == (1,) and torch.isfinite(out).all()
@@ -68,27 +69,40 @@ def test_forward_shape_at_224_depth18(variant):
 
 def test_small_inputs_and_size_checks():
     for size in (MIN_IMAGE_SIZE, 32, 64):
-        model = build_model("full", 18, size, "sigmoid")
+        model = build_model("full", 18, size, "sigmoid", PAPER_WIDTH)
         out = model(torch.rand(2, 4, size, size))            # training mode works with 2 samples
         assert out.shape == (2,)
     with pytest.raises(ArgumentError, match="at least 8"):
-        build_model("full", 18, MIN_IMAGE_SIZE - 1, "sigmoid")
+        build_model("full", 18, MIN_IMAGE_SIZE - 1, "sigmoid", PAPER_WIDTH)
     with pytest.raises(ArgumentError, match=r"image_size 32\.0 must be a whole number"):
-        build_model("full", 18, 32.0, "sigmoid")
-    model = build_model("full", 18, 32, "sigmoid").eval()
+        build_model("full", 18, 32.0, "sigmoid", PAPER_WIDTH)
+    model = build_model("full", 18, 32, "sigmoid", PAPER_WIDTH).eval()
     with pytest.raises(ValueError, match="32 px"):
         model(torch.rand(1, 4, 64, 64))
     with pytest.raises(ValueError, match="4, S, S"):
         model(torch.rand(1, 2, 32, 32))
     with pytest.raises(ArgumentError, match="unknown model variant 'tiny'"):
-        build_model("tiny", 18, 32, "sigmoid")
+        build_model("tiny", 18, 32, "sigmoid", PAPER_WIDTH)
     with pytest.raises(ValueError, match="depth"):
-        build_model("full", 152, 32, "sigmoid")
+        build_model("full", 152, 32, "sigmoid", PAPER_WIDTH)
+
+
+def test_width_scales_every_layer_and_is_checked():
+    with torch.device("meta"):
+        paper = count_parameters(build_model("full", 18, 16, "sigmoid", PAPER_WIDTH))
+        smoke = count_parameters(build_model("full", 18, 16, "sigmoid", 8))
+    assert paper / smoke > 50                   # conv and linear weights scale with width squared
+    model = build_model("no_gam", 34, 16, "sigmoid", 8)
+    assert model.regressor.stem[0].out_channels == 8 and model.regressor.out_features == 64
+    assert model(torch.rand(2, 4, 16, 16)).shape == (2,)
+    for bad in (0, 8.0, True):
+        with pytest.raises(ArgumentError, match="model width"):
+            build_model("full", 18, 16, "sigmoid", bad)
 
 
 def test_channels_last_gives_the_same_output():
     torch.manual_seed(0)
-    model = build_model("full", 18, 32, "sigmoid").eval()
+    model = build_model("full", 18, 32, "sigmoid", PAPER_WIDTH).eval()
     x = torch.rand(2, 4, 32, 32)
     with torch.no_grad():
         a = model(x)
@@ -139,7 +153,7 @@ def test_variants_read_only_their_channels():
     with torch.no_grad():
         for variant in VARIANTS:
             torch.manual_seed(1)
-            m = build_model(variant, 18, 32, "sigmoid").eval()
+            m = build_model(variant, 18, 32, "sigmoid", PAPER_WIDTH).eval()
             torch.nn.init.normal_(m.head[-1].weight)     # the untrained output layer is zero (a constant)
             out[variant] = [m(t) for t in (x, changed_ref, changed_right)]
 
@@ -156,7 +170,7 @@ def test_variants_read_only_their_channels():
 
 
 def test_no_gam_has_no_gam_parameters():
-    full, no_gam = build_model("full", 18, 32, "sigmoid"), build_model("no_gam", 18, 32, "sigmoid")
+    full, no_gam = build_model("full", 18, 32, "sigmoid", PAPER_WIDTH), build_model("no_gam", 18, 32, "sigmoid", PAPER_WIDTH)
     assert sum("gam" in n for n, _ in full.named_parameters()) > 0
     assert sum("gam" in n for n, _ in no_gam.named_parameters()) == 0
 
@@ -222,7 +236,7 @@ def test_training_lowers_validation_loss(tiny, tmp_path):
     # the same initial model, before any training step
     st = split["label_stats"]
     torch.manual_seed(cfg.seed)
-    untrained = build_model("full", 18, S, "sigmoid").eval()
+    untrained = build_model("full", 18, S, "sigmoid", PAPER_WIDTH).eval()
     x_val, y_val = data.arrays(split["validation"])
     with torch.no_grad():
         z = untrained(torch.from_numpy(x_val).float() / 255).numpy()

@@ -67,7 +67,7 @@ def cmd_tool_train(args) -> None:
     p = stage_params(args, "seed", "tool_train.lr", "tool_train.lr_schedule", "tool_train.batch_size",
                 "tool_train.max_epochs", "tool_train.patience", "tool_train.max_train_batches_per_epoch",
                 "tool_train.bn_recalibration_batches", "tool_train.device", "tool_train.amp", "tool_train.num_threads",
-                "tool_train.gam_channel_gate")
+                "tool_train.gam_channel_gate", "tool_train.width")
     result = train_and_predict(args.scene, Path(args.data_dir), Path(args.split), Path(args.out_dir), args.variant,
                                args.depth, args.image_size, p["tool_train"], p["seed"], progress=not args.quiet)
     print(json.dumps({k: result[k] for k in ("variant", "depth", "image_size", "mae", "rmse", "r2", "train_s",

@@ -28,14 +28,14 @@ Job = tuple[str, dict, dict, int]
 
 
 @lru_cache(maxsize=None)
-def forward_flops(variant: str, depth: int, image_size: int, gam_channel_gate: str) -> float:
+def forward_flops(variant: str, depth: int, image_size: int, gam_channel_gate: str, width: int) -> float:
     """FLOPs (multiply and add counted as two) of one frame pair through the model, inference mode."""
     import torch
     from torch.utils.flop_counter import FlopCounterMode
 
     from tactilepipe.tool.model.network import build_model
     with torch.device("meta"):
-        model = build_model(variant, depth, image_size, gam_channel_gate).eval()
+        model = build_model(variant, depth, image_size, gam_channel_gate, width).eval()
         x = torch.empty(1, 4, image_size, image_size)
         with FlopCounterMode(display=False) as counter:
             model(x)
@@ -68,7 +68,7 @@ def training_flops(p: dict, pairs: int, variant: str, depth: int, image_size: in
     n_train, n_val, n_test = pairs * f_train, pairs * f_val, pairs * f_test
     if tt["max_train_batches_per_epoch"]:
         n_train = min(n_train, tt["max_train_batches_per_epoch"] * tt["batch_size"])
-    fwd = forward_flops(variant, depth, image_size, tt["gam_channel_gate"])
+    fwd = forward_flops(variant, depth, image_size, tt["gam_channel_gate"], tt["width"])
     epochs = tt["max_epochs"]
     total = epochs * (3 * fwd * n_train + fwd * n_val) + fwd * n_test
     return {"forward_gflop": fwd / 1e9, "epochs": epochs, "train_pairs": int(n_train), "flop": total}

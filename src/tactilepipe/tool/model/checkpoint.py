@@ -15,6 +15,7 @@ import torch
 
 from tactilepipe.core.atomic import atomic_path
 from tactilepipe.core.errors import InputError
+from tactilepipe.tool.model.network import PAPER_WIDTH
 
 if TYPE_CHECKING:
     from tactilepipe.tool.model.train import TrainConfig
@@ -68,8 +69,8 @@ def load_checkpoint(path: Path, raw=None) -> dict:
 
 def settings_diff(ckpt: dict, cfg: TrainConfig, split: dict, data) -> dict:
     """Settings of ``cfg``/``split``/``data`` that differ from the checkpoint's (empty: it may resume)."""
-    # checkpoints from before these settings existed: a constant schedule, sigmoid-gated GAMs
-    old = {"lr_schedule": "constant", "gam_channel_gate": "sigmoid", **ckpt["config"]}
+    # checkpoints from before these settings existed: a constant schedule, sigmoid-gated GAMs, the paper's width
+    old = {"lr_schedule": "constant", "gam_channel_gate": "sigmoid", "width": PAPER_WIDTH, **ckpt["config"]}
     resumable = RESUMABLE_CHANGES - ({"max_epochs"} if cfg.lr_schedule == "cosine" else set())   # it sets the decay
     diff = {k: (old.get(k), v) for k, v in asdict(cfg).items() if k not in resumable and old.get(k) != v}
     if ckpt["meta"].get("split_fingerprint") != split_fingerprint(split):

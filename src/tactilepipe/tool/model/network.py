@@ -20,6 +20,12 @@ tool_train.gam_channel_gate) builds the public flavour, which its published weig
 creates the same parameters in the same order, so the default ("sigmoid") is unchanged. Kaiming initialisation, then zero-init of
 each residual block's last BN and of the output layer (see _kaiming_init).
 
+The channel counts above are the paper's, at ``width`` 64 (params.yaml tool_train.width; the
+published weights have it). Every channel count and the head's hidden sizes scale with ``width``
+(encoder w/2w/4w, ResNet stem and stages w..8w, head 16w and 8w): the smoke scale runs width 8,
+so its checkpoints take about 1 MB instead of 100 MB. At 64 the layers, and the order in which
+they are created and initialised, are exactly the paper's.
+
 Parameter counts do not depend on the image size (the network is fully convolutional up to the
 global pool). ``full`` at depth 101: 57,297,665 parameters (the paper: about 57 M).
 
@@ -45,6 +51,7 @@ from tactilepipe.core.errors import ArgumentError
 
 MIN_IMAGE_SIZE = 8
 GAM_CHANNEL_GATES = ("sigmoid", "none")
+PAPER_WIDTH = 64                     # the published model's width (its weights need it)
 
 
 @dataclass(frozen=True)
@@ -145,10 +152,10 @@ class GAM(nn.Module):
 
 
 class Encoder(nn.Module):
-    def __init__(self, in_channels: int, widths=(64, 128, 256), dropout: float = 0.2):
+    def __init__(self, in_channels: int, width: int, dropout: float = 0.2):
         super().__init__()
         layers, c = [], in_channels
-        for w in widths:
+        for w in (width, 2 * width, 4 * width):
             layers += [TrimmedConv2d(c, w, 3, padding=1), nn.BatchNorm2d(w), nn.ReLU(inplace=True), nn.MaxPool2d(2)]
             c = w
         layers.append(nn.Dropout(dropout))
@@ -209,14 +216,14 @@ def _downsample(inplanes: int, outplanes: int, stride: int) -> nn.Module | None:
 class ResNetRegressor(nn.Module):
     """ResNet trunk whose stem takes ``in_channels`` fused feature channels; fc removed."""
 
-    def __init__(self, in_channels: int, depth: int):
+    def __init__(self, in_channels: int, depth: int, width: int):
         super().__init__()
         kind, blocks = DEPTHS[depth]
         block = BasicBlock if kind == "basic" else Bottleneck
-        self.stem = nn.Sequential(TrimmedConv2d(in_channels, 64, 7, 2, 3, bias=False), nn.BatchNorm2d(64),
+        self.stem = nn.Sequential(TrimmedConv2d(in_channels, width, 7, 2, 3, bias=False), nn.BatchNorm2d(width),
                                   nn.ReLU(inplace=True), nn.MaxPool2d(3, 2, 1))
-        stages, inplanes = [], 64
-        for i, (planes, n) in enumerate(zip((64, 128, 256, 512), blocks)):
+        stages, inplanes = [], width
+        for i, (planes, n) in enumerate(zip((width, 2 * width, 4 * width, 8 * width), blocks)):
             layers = []
             for j in range(n):
                 layers.append(block(inplanes, planes, 2 if (i > 0 and j == 0) else 1))
@@ -231,22 +238,22 @@ class ResNetRegressor(nn.Module):
 
 
 class ToolForceNet(nn.Module):
-    def __init__(self, variant: str, depth: int, image_size: int, gam_channel_gate: str):
+    def __init__(self, variant: str, depth: int, image_size: int, gam_channel_gate: str, width: int):
         super().__init__()
-        self.variant, self.depth, self.image_size = variant, depth, image_size
+        self.variant, self.depth, self.image_size, self.width = variant, depth, image_size, width
         self.gam_channel_gate = gam_channel_gate
         spec = VARIANTS[variant]
         self.slices = spec.sensors
-        self.encoders = nn.ModuleList(Encoder(b - a) for a, b in spec.sensors)
+        self.encoders = nn.ModuleList(Encoder(b - a, width) for a, b in spec.sensors)
         self.sensor_gams = nn.ModuleList(GAM(e.out_channels, channel_gate=gam_channel_gate) if spec.gam
                                          else nn.Identity() for e in self.encoders)
         fused = sum(e.out_channels for e in self.encoders)
         self.fusion_gam = (GAM(fused, channel_gate=gam_channel_gate) if (spec.gam and len(self.encoders) > 1)
                            else nn.Identity())
-        self.regressor = ResNetRegressor(fused, depth)
+        self.regressor = ResNetRegressor(fused, depth, width)
         f = self.regressor.out_features
-        self.head = nn.Sequential(nn.Linear(f, 1024), nn.ReLU(inplace=True), nn.Linear(1024, 512),
-                                  nn.ReLU(inplace=True), nn.Linear(512, 1))
+        self.head = nn.Sequential(nn.Linear(f, 16 * width), nn.ReLU(inplace=True), nn.Linear(16 * width, 8 * width),
+                                  nn.ReLU(inplace=True), nn.Linear(8 * width, 1))
         _kaiming_init(self)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -292,10 +299,11 @@ def check_image_size(image_size: int) -> None:
                             f"(the encoder divides by 8)")
 
 
-def build_model(variant: str, depth: int, image_size: int, gam_channel_gate: str) -> ToolForceNet:
+def build_model(variant: str, depth: int, image_size: int, gam_channel_gate: str, width: int) -> ToolForceNet:
     """A freshly initialised model (no pretrained weights). ``variant`` is a key of VARIANTS,
     ``depth`` one of 18, 34, 50, 101, ``image_size`` the side S of the square inputs,
-    ``gam_channel_gate`` one of GAM_CHANNEL_GATES."""
+    ``gam_channel_gate`` one of GAM_CHANNEL_GATES, ``width`` the channels of the first encoder
+    stage (PAPER_WIDTH: the paper's model)."""
     if gam_channel_gate not in GAM_CHANNEL_GATES:
         raise ArgumentError(f"unknown gam_channel_gate '{gam_channel_gate}' (one of {', '.join(GAM_CHANNEL_GATES)})")
     if variant not in VARIANTS:
@@ -303,7 +311,9 @@ def build_model(variant: str, depth: int, image_size: int, gam_channel_gate: str
     if depth not in DEPTHS:
         raise ArgumentError(f"unsupported ResNet depth {depth} (one of {', '.join(map(str, DEPTHS))})")
     check_image_size(image_size)
-    return ToolForceNet(variant, depth, int(image_size), gam_channel_gate)
+    if isinstance(width, bool) or not isinstance(width, numbers.Integral) or width < 1:
+        raise ArgumentError(f"model width {width!r} must be a whole number of channels, at least 1")
+    return ToolForceNet(variant, depth, int(image_size), gam_channel_gate, int(width))
 
 
 def count_parameters(model: nn.Module, trainable_only: bool = False) -> int:

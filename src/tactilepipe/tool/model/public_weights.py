@@ -27,7 +27,7 @@ import torch
 from torch import nn
 
 from tactilepipe.core.errors import ArgumentError, InputError
-from tactilepipe.tool.model.network import DEPTHS, build_model
+from tactilepipe.tool.model.network import DEPTHS, PAPER_WIDTH, build_model
 
 PUBLIC_MARKER = "initial_cnn1.conv1.weight"
 HEADS = {"normal": (0, 2, 4), "shear": (0, 3, 5)}      # public fc indices of our head.0, head.2, head.4
@@ -124,7 +124,7 @@ def from_public(state, source: str | Path = "checkpoint") -> tuple[dict, int, st
         depth, head = public_layout(state)
     except ValueError as exc:
         raise InputError(source, f"not the public network's layout: {exc}") from None
-    ref = build_model("full", depth, 8, gam_channel_gate="none").state_dict()
+    ref = build_model("full", depth, 8, gam_channel_gate="none", width=PAPER_WIDTH).state_dict()
     mapped, unexpected = {}, []
     for key, value in state.items():
         ours = to_ours_key(key, head)
@@ -160,9 +160,9 @@ def public_model(state, image_size: int, source: str | Path = "checkpoint") -> t
     PublicInput, and metadata as ``train.load_model`` gives it (label_stats None: the public
     checkpoint does not record the force range it was normalised with)."""
     ours, depth, head = from_public(state, source)
-    net = build_model("full", depth, image_size, gam_channel_gate="none")
+    net = build_model("full", depth, image_size, gam_channel_gate="none", width=PAPER_WIDTH)
     net.load_state_dict(ours)
     meta = {"variant": "full", "depth": depth, "image_size": int(image_size), "gam_channel_gate": "none",
-            "label": head, "normalise": "minmax", "label_stats": None, "source": "public", "head": head,
+            "width": PAPER_WIDTH, "label": head, "normalise": "minmax", "label_stats": None, "source": "public", "head": head,
             "input_range": [-1.0, 1.0]}
     return PublicInput(net), meta

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -58,6 +58,7 @@ class TrainConfig:
     bn_recalibration_batches: int       # training batches that re-estimate BatchNorm statistics before
                                         # each validation (0: keep the running averages)
     gam_channel_gate: str               # sigmoid (ours) | none (the public code's GAM channel branch)
+    width: int                          # channels of the first encoder stage (the paper: 64); all scale with it
     channels_last: bool = True          # NHWC memory format (faster on CPU); not a parameter
 
     @classmethod
@@ -69,15 +70,8 @@ class TrainConfig:
                    lr=t["lr"], lr_schedule=t["lr_schedule"], batch_size=t["batch_size"], max_epochs=t["max_epochs"],
                    patience=t["patience"], device=t["device"], amp=t["amp"], num_threads=t["num_threads"],
                    max_train_batches_per_epoch=t["max_train_batches_per_epoch"] or None,
-                   bn_recalibration_batches=t["bn_recalibration_batches"], gam_channel_gate=t["gam_channel_gate"])
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "TrainConfig":
-        names = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - names)
-        if unknown:
-            raise ConfigError(f"unknown training settings {unknown} (known: {sorted(names)})")
-        return cls(**d)
+                   bn_recalibration_batches=t["bn_recalibration_batches"], gam_channel_gate=t["gam_channel_gate"],
+                   width=t["width"])
 
 
 # ----------------------------------------------------------------------------- label scaling
@@ -193,7 +187,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
     use_amp = bool(cfg.amp) and device.type == "cuda"
     stats = split["label_stats"]
     meta = {"variant": cfg.variant, "depth": cfg.depth, "image_size": cfg.image_size,
-            "gam_channel_gate": cfg.gam_channel_gate, "normalise": cfg.normalise, "label_stats": dict(stats), "label": split.get("label"),
+            "gam_channel_gate": cfg.gam_channel_gate, "width": cfg.width, "normalise": cfg.normalise, "label_stats": dict(stats), "label": split.get("label"),
             "split": split.get("name"), "split_fingerprint": split_fingerprint(split),
             "data_fingerprint": data_fingerprint(data)}
 
@@ -204,7 +198,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
             torch.set_num_threads(int(cfg.num_threads))
         torch.use_deterministic_algorithms(True, warn_only=device.type != "cpu")
         torch.manual_seed(cfg.seed)
-        model = build_model(cfg.variant, cfg.depth, cfg.image_size, cfg.gam_channel_gate).to(device)
+        model = build_model(cfg.variant, cfg.depth, cfg.image_size, cfg.gam_channel_gate, cfg.width).to(device)
         if cfg.channels_last:
             model = model.to(memory_format=torch.channels_last)
         meta["parameters"] = count_parameters(model)
