@@ -22,5 +22,5 @@ def smoke_build(tmp_path_factory) -> Path:
     # records input checksums, which later compare a touched but unchanged file as unchanged
     snakemake(wd, "--workflow-profile", "workflow/profiles/default")
     yield wd
-    shutil.rmtree(wd, ignore_errors=True)        # trained models: GBs
+    shutil.rmtree(wd, ignore_errors=True)        # recordings, shards and models: tens of MB
 

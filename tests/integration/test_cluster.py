@@ -231,9 +231,6 @@ def comparable(wd: Path) -> dict:
 
 @pytest.fixture(scope="module")
 def slurm_cluster():
-    if os.environ.get("TACTILEPIPE_SLURM_TEST") != "1":
-        pytest.skip("installs and starts SLURM, then ~100 jobs through it: run with `make test-slurm` "
-                    "(sets TACTILEPIPE_SLURM_TEST=1)")
     if os.geteuid() != 0:
         pytest.skip("a SLURM test cluster needs root (apt-get install, slurmd)")
     if shutil.which("slurmctld") is None and shutil.which("apt-get") is None:
@@ -249,6 +246,9 @@ def slurm_cluster():
 
 
 @pytest.mark.slurm
+@pytest.mark.skipif(os.environ.get("TACTILEPIPE_SLURM_TEST") != "1",      # before any fixture: no smoke build
+                    reason="installs and starts SLURM, then ~100 jobs through it: run with `make test-slurm` "
+                           "(sets TACTILEPIPE_SLURM_TEST=1)")
 def test_smoke_scale_through_slurm_equals_the_local_run(slurm_cluster, smoke_build, tmp_path):
     """The local run is the test session's shared smoke build (tests/integration/conftest.py): the
     cluster runs a copy of the same project, with the same parameter file, through the scheduler."""

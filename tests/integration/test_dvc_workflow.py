@@ -93,7 +93,7 @@ def repo(tmp_path_factory, smoke_build) -> dict:
     baseline = {"lock": yaml.safe_load((wd / "dvc.lock").read_text()),
                 "metrics": json.loads(dvc(wd, "metrics", "show", "--json").stdout)}
     yield {"wd": wd, "root": root, "remote": remote, "baseline": baseline}
-    shutil.rmtree(root, ignore_errors=True)          # the project, its clones and the remote: GBs
+    shutil.rmtree(root, ignore_errors=True)          # the project, its clones and the remote
 
 
 def test_every_generated_file_is_a_declared_out(repo):

@@ -11,7 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 import yaml
+
+from tactilepipe.core.config import load_params
+from tactilepipe.tool.model.network import PAPER_WIDTH, build_model, count_parameters
 
 from support.project import BIN, REPO, copy_project, run, snakemake
 
@@ -184,7 +188,12 @@ def test_a_tool_model_trains_and_predicts_through_snakemake(smoke_build: Path):
     target = "results/tool_normal/models/full/eval.json"     # built by the smoke run (scene tool_normal)
     e = json.loads((smoke_build / target).read_text())
     assert e["variant"] == "full" and e["split"] == "trial"
-    assert e["n"] > 0 and e["latency_ms"] > 0 and e["parameters"] > 1e6
+    assert e["n"] > 0 and e["latency_ms"] > 0
+    tt = load_params(smoke_build / "params.yaml")["tool_train"]           # the model the smoke scale asks for
+    with torch.device("meta"):
+        expected = count_parameters(build_model("full", tt["depth"], tt["image_size"], tt["gam_channel_gate"],
+                                                tt["width"]))
+    assert e["parameters"] == expected and tt["width"] < PAPER_WIDTH
     assert {"mae", "rmse", "r2", "slope", "intercept", "per_tool", "per_window"} <= set(e)
     assert sum(w["n"] for w in e["per_window"]) == e["n"]        # every test pair counted once
     proc = run([str(BIN / "tactilepipe"), "predict", "--scale", "smoke", "--checkpoint",

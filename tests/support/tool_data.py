@@ -10,7 +10,6 @@ import pandas as pd
 
 from tactilepipe.tool.data.loader import ToolFrames
 from tactilepipe.tool.data.splits import label_stats
-from tactilepipe.tool.model.network import PAPER_WIDTH
 from tactilepipe.tool.model.train import TrainConfig
 
 S = 32            # image size of the training tests (the smoke scale)
@@ -63,5 +62,5 @@ def quick_cfg(**kw) -> TrainConfig:
     base = dict(variant="full", depth=18, image_size=S, lr=2e-4, lr_schedule="constant", batch_size=24, max_epochs=3,
                 patience=None, normalise="minmax", seed=7, device="auto", amp=True, num_threads=2,
                 max_train_batches_per_epoch=None, bn_recalibration_batches=20, gam_channel_gate="sigmoid",
-                width=PAPER_WIDTH)
+                width=16)
     return TrainConfig(**{**base, **kw})

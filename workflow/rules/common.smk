@@ -35,6 +35,7 @@ CLI = f"{shlex.quote(sys.executable)} -m tactilepipe"
 PARAMS_ARGS = f"--override {shlex.quote(json.dumps(OVERRIDES, sort_keys=True))}" if OVERRIDES else ""
 
 
+@cache
 def _repo_relative(path):
     """Workflow-relative path of a source file (absolute when the package lives elsewhere)."""
     try:

@@ -19,9 +19,12 @@ from __future__ import annotations
 
 import ast
 import hashlib
+import json
+import os
 from functools import lru_cache
 from pathlib import Path
 
+from tactilepipe.core.atomic import write_json
 from tactilepipe.core.errors import TactilepipeError
 
 PACKAGE = "tactilepipe"
@@ -147,7 +150,46 @@ def _stage_module(stage: str) -> str:
 
 @lru_cache(maxsize=None)
 def stage_modules(stage: str) -> frozenset[str]:
-    """Modules the CLI stage function ``stage`` (e.g. "cmd_report_volume") runs."""
+    """Modules the CLI stage function ``stage`` (e.g. "cmd_report_volume") runs.
+
+    Every Snakemake start asks this for every stage, and every SLURM job starts Snakemake twice,
+    so the answers are kept in a small file in the user's cache folder, valid only for the exact
+    source they came from (a digest of every file of the package); any edit recomputes them."""
+    stored = _stored_closures()
+    if stage in stored["stages"]:
+        return frozenset(stored["stages"][stage])
+    closure = _stage_closure(stage)
+    stored["stages"][stage] = sorted(closure)
+    try:
+        write_json(_CLOSURE_CACHE, stored)
+    except OSError:
+        pass                      # no writable cache folder: computed again next time
+    return closure
+
+
+_CLOSURE_CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / PACKAGE / "stage-modules.json"
+
+
+def _source_digest() -> str:
+    h = hashlib.sha256()
+    for f in sorted(PACKAGE_DIR.rglob("*.py")):
+        h.update(str(f.relative_to(PACKAGE_DIR)).encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+@lru_cache(maxsize=None)
+def _stored_closures() -> dict:
+    digest = _source_digest()
+    try:
+        stored = json.loads(_CLOSURE_CACHE.read_text())
+        if stored.get("digest") == digest and isinstance(stored.get("stages"), dict):
+            return stored
+    except (OSError, ValueError):
+        pass
+    return {"digest": digest, "stages": {}}
+
+
+def _stage_closure(stage: str) -> frozenset[str]:
     home = _stage_module(stage)
     functions = _functions(home)
     tree = _tree(module_path(home))
