@@ -239,7 +239,7 @@ def slurm_cluster():
     already = subprocess.run(["bash", str(CLUSTER), "start"], capture_output=True, text=True)
     if already.returncode != 0:
         raise AssertionError(f"could not start the test cluster:\n{already.stdout}\n{already.stderr}")
-    started_here = "already running" not in already.stderr
+    started_here = "cluster already running" not in already.stderr     # else another run's: leave it up
     yield Path(os.environ.get("SLURM_TEST_DIR", "/tmp/tactilepipe-slurm"))
     if started_here:
         subprocess.run(["bash", str(CLUSTER), "stop"], capture_output=True, text=True)
