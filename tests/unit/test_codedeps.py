@@ -12,15 +12,13 @@ from tactilepipe.pipeline import codedeps
 @pytest.fixture(autouse=True)
 def _forget_afterwards():
     yield
-    codedeps.stage_modules.cache_clear()          # later tests read the real cache again
-    codedeps._stored_closures.cache_clear()
+    codedeps._stored_closures.cache_clear()          # later tests read the real cache again
 
 
 def _fresh(monkeypatch, cache, digest=None):
     monkeypatch.setattr(codedeps, "_CLOSURE_CACHE", cache)
     if digest is not None:
         monkeypatch.setattr(codedeps, "_source_digest", lambda: digest)
-    codedeps.stage_modules.cache_clear()
     codedeps._stored_closures.cache_clear()
 
 

@@ -148,23 +148,14 @@ def _stage_module(stage: str) -> str:
     return homes[stage]
 
 
-@lru_cache(maxsize=None)
 def stage_modules(stage: str) -> frozenset[str]:
     """Modules the CLI stage function ``stage`` (e.g. "cmd_report_volume") runs.
 
     Every Snakemake start asks this for every stage, and every SLURM job starts Snakemake twice,
     so the answers are kept in a small file in the user's cache folder, valid only for the exact
     source they came from (a digest of every file of the package); any edit recomputes them."""
-    stored = _stored_closures()
-    if stage in stored["stages"]:
-        return frozenset(stored["stages"][stage])
-    closure = _stage_closure(stage)
-    stored["stages"][stage] = sorted(closure)
-    try:
-        write_json(_CLOSURE_CACHE, stored)
-    except OSError:
-        pass                      # no writable cache folder: computed again next time
-    return closure
+    _stage_module(stage)                      # an unknown stage is an error, cached or not
+    return frozenset(_stored_closures()["stages"][stage])
 
 
 _CLOSURE_CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / PACKAGE / "stage-modules.json"
@@ -179,6 +170,7 @@ def _source_digest() -> str:
 
 @lru_cache(maxsize=None)
 def _stored_closures() -> dict:
+    """Every stage's closure: read back for this exact source, else computed all at once and stored."""
     digest = _source_digest()
     try:
         stored = json.loads(_CLOSURE_CACHE.read_text())
@@ -186,7 +178,13 @@ def _stored_closures() -> dict:
             return stored
     except (OSError, ValueError):
         pass
-    return {"digest": digest, "stages": {}}
+    stages = sorted(name for m in _study_modules() for name in _functions(m) if name.startswith("cmd_"))
+    stored = {"digest": digest, "stages": {s: sorted(_stage_closure(s)) for s in stages}}
+    try:
+        write_json(_CLOSURE_CACHE, stored)
+    except OSError:
+        pass                                  # no writable cache folder: computed again next time
+    return stored
 
 
 def _stage_closure(stage: str) -> frozenset[str]:

@@ -67,10 +67,14 @@ def load_checkpoint(path: Path, raw=None) -> dict:
     return raw
 
 
+# settings a checkpoint may not record, because it was written before they existed: the only
+# value each had then (sigmoid-gated GAMs, the paper's width)
+UNRECORDED = {"gam_channel_gate": "sigmoid", "width": PAPER_WIDTH}
+
+
 def settings_diff(ckpt: dict, cfg: TrainConfig, split: dict, data) -> dict:
     """Settings of ``cfg``/``split``/``data`` that differ from the checkpoint's (empty: it may resume)."""
-    # checkpoints from before these settings existed: a constant schedule, sigmoid-gated GAMs, the paper's width
-    old = {"lr_schedule": "constant", "gam_channel_gate": "sigmoid", "width": PAPER_WIDTH, **ckpt["config"]}
+    old = {"lr_schedule": "constant", **UNRECORDED, **ckpt["config"]}     # before the schedule: constant
     resumable = RESUMABLE_CHANGES - ({"max_epochs"} if cfg.lr_schedule == "cosine" else set())   # it sets the decay
     diff = {k: (old.get(k), v) for k, v in asdict(cfg).items() if k not in resumable and old.get(k) != v}
     if ckpt["meta"].get("split_fingerprint") != split_fingerprint(split):

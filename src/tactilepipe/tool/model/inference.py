@@ -11,8 +11,8 @@ import torch
 from torch import nn
 
 from tactilepipe.core.errors import ArgumentError, InputError
-from tactilepipe.tool.model.checkpoint import load_checkpoint
-from tactilepipe.tool.model.network import PAPER_WIDTH, build_model
+from tactilepipe.tool.model.checkpoint import UNRECORDED, load_checkpoint
+from tactilepipe.tool.model.network import build_model
 from tactilepipe.tool.model.train import denormalise, resolve_device, to_input, uses_channels_last
 
 
@@ -42,9 +42,7 @@ def load_model(checkpoint_path: str | Path, device: str = "cpu", channels_last: 
 
 def _own_model(checkpoint_path: Path, raw) -> tuple[nn.Module, dict]:
     ckpt = load_checkpoint(checkpoint_path, raw)
-    # checkpoints written before a setting was recorded were made with its only value then
-    meta = {"gam_channel_gate": "sigmoid", "width": PAPER_WIDTH, **ckpt["meta"], "config": ckpt["config"],
-            "source": "tactilepipe"}
+    meta = {**UNRECORDED, **ckpt["meta"], "config": ckpt["config"], "source": "tactilepipe"}
     try:
         model = build_model(meta["variant"], meta["depth"], meta["image_size"], meta["gam_channel_gate"], meta["width"])
     except ArgumentError as exc:                  # the file's metadata, not the caller's argument
