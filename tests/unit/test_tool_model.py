@@ -5,6 +5,8 @@ each variant reads, and short CPU training runs on a tiny synthetic dataset in t
 from __future__ import annotations
 
 import csv
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -274,6 +276,39 @@ def test_training_lowers_validation_loss(tiny, tmp_path):
 
     ms = latency_ms(model, S, n=5)
     assert isinstance(ms, float) and ms > 0.0
+
+
+class FlagRecordingData(CrashingData):
+    """Wraps a dataset and records PyTorch's deterministic-algorithms flags at every batch."""
+
+    def __init__(self, data):
+        super().__init__(data, crash_epoch=0)
+        self.flags = set()
+
+    def batches(self, idx, batch_size, shuffle, seed=0):
+        for batch in self.data.batches(idx, batch_size, shuffle, seed):
+            self.flags.add((torch.are_deterministic_algorithms_enabled(),
+                            torch.is_deterministic_algorithms_warn_only_enabled()))
+            yield batch
+
+
+def test_training_runs_deterministic_kernels_and_restores_the_callers_setting(tiny, tmp_path):
+    data, split = tiny
+    saved = (torch.are_deterministic_algorithms_enabled(), torch.is_deterministic_algorithms_warn_only_enabled())
+    recording = FlagRecordingData(data)
+    try:
+        torch.use_deterministic_algorithms(False)
+        train(recording, split, quick_cfg(max_epochs=1, max_train_batches_per_epoch=1, batch_size=16, device="cpu"),
+              tmp_path, progress=False)
+        assert recording.flags == {(True, False)}                 # on CPU: an error, not a warning
+        assert not torch.are_deterministic_algorithms_enabled()
+    finally:
+        torch.use_deterministic_algorithms(saved[0], warn_only=saved[1])
+    # without importing torch.compile's back end (seconds per training job)
+    code = ("import sys, torch; from tactilepipe.tool.model.train import _use_deterministic_algorithms; "
+            "_use_deterministic_algorithms(True, warn_only=False); "
+            "assert torch.are_deterministic_algorithms_enabled(); assert 'torch._inductor' not in sys.modules")
+    subprocess.run([sys.executable, "-c", code], check=True)
 
 
 def test_same_seed_same_weights_and_resume_equals_uninterrupted(tiny, tmp_path):

@@ -160,9 +160,12 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, runs: list
                 "mean ± std and 95 % interval (Nadeau-Bengio corrected)", "{:.3f}")
     write_table(_differences_table(metrics, variants), tables / "differences",
                 f"{scene}: paired differences over the {k_repeats} repeats, 95 % intervals", "{:.3f}")
-    write_table(pd.DataFrame(metrics["paper_orderings"]).drop(columns=["better", "worse"]), tables / "paper_orderings",
+    orderings = pd.DataFrame(metrics["paper_orderings"], columns=verdicts.ORDERING_FIELDS)
+    write_table(orderings.drop(columns=["better", "worse"]), tables / "paper_orderings",
                 f"{scene}: the study's orderings of the variants, judged on the paired MAE difference (worse − better) "
-                f"over the {k_repeats} repeats", "{:.3f}")
+                f"over the {k_repeats} repeats" + ("" if len(orderings) else
+                                                   f" (none: no ordering is between two of {', '.join(variants)})"),
+                "{:.3f}")
     pt = pd.concat([pd.DataFrame(evals[plan.repeats[v][0]]["per_tool"]).assign(model=v) for v in variants],
                    ignore_index=True)
     pw = pd.concat([pd.DataFrame(evals[plan.repeats[v][0]]["per_window"]).assign(model=v) for v in variants],

@@ -51,6 +51,10 @@ def order_by_mae(scores: dict[str, dict[str, list[float]]], test_train_ratio: fl
     return rows, ranking_text(rows)
 
 
+# the fields of each judged ordering, in table order (a table of no orderings still has them)
+ORDERING_FIELDS = ["claim", "better", "worse", "mae_difference", "low", "high", "verdict"]
+
+
 def paper_orderings(scene: str, scores: dict[str, dict[str, list[float]]], test_train_ratio: float) -> list[dict]:
     """Each of the study's orderings for this scene, judged on MAE over the draws: "holds" when the
     paired interval of worse - better lies above zero, "reversed" when below, else "undecided"."""
