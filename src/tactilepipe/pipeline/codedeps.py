@@ -19,18 +19,17 @@ from __future__ import annotations
 
 import ast
 import hashlib
-import json
-import os
 from functools import lru_cache
 from pathlib import Path
 
-from tactilepipe.core.atomic import write_json
 from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.pipeline import sourcecache
 
 PACKAGE = "tactilepipe"
 PACKAGE_DIR = Path(__file__).resolve().parents[1]     # src/tactilepipe
 CLI_PACKAGE = f"{PACKAGE}.cli"
 ENTRY = f"{CLI_PACKAGE}.main"
+CLOSURE_CACHE = "stage-modules"
 
 
 @lru_cache(maxsize=None)
@@ -152,39 +151,21 @@ def stage_modules(stage: str) -> frozenset[str]:
     """Modules the CLI stage function ``stage`` (e.g. "cmd_report_volume") runs.
 
     Every Snakemake start asks this for every stage, and every SLURM job starts Snakemake twice,
-    so the answers are kept in a small file in the user's cache folder, valid only for the exact
-    source they came from (a digest of every file of the package); any edit recomputes them."""
+    so the answers are kept for the exact source they came from (sourcecache)."""
     _stage_module(stage)                      # an unknown stage is an error, cached or not
-    return frozenset(_stored_closures()["stages"][stage])
-
-
-_CLOSURE_CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / PACKAGE / "stage-modules.json"
-
-
-def _source_digest() -> str:
-    h = hashlib.sha256()
-    for f in sorted(PACKAGE_DIR.rglob("*.py")):
-        h.update(str(f.relative_to(PACKAGE_DIR)).encode() + b"\0" + f.read_bytes() + b"\0")
-    return h.hexdigest()
+    return frozenset(_stored_closures()[stage])
 
 
 @lru_cache(maxsize=None)
-def _stored_closures() -> dict:
+def _stored_closures() -> dict[str, list[str]]:
     """Every stage's closure: read back for this exact source, else computed all at once and stored."""
-    digest = _source_digest()
-    try:
-        stored = json.loads(_CLOSURE_CACHE.read_text())
-        if stored.get("digest") == digest and isinstance(stored.get("stages"), dict):
-            return stored
-    except (OSError, ValueError):
-        pass
+    stored = sourcecache.read(CLOSURE_CACHE)
+    if stored:
+        return stored
     stages = sorted(name for m in _study_modules() for name in _functions(m) if name.startswith("cmd_"))
-    stored = {"digest": digest, "stages": {s: sorted(_stage_closure(s)) for s in stages}}
-    try:
-        write_json(_CLOSURE_CACHE, stored)
-    except OSError:
-        pass                                  # no writable cache folder: computed again next time
-    return stored
+    closures = {s: sorted(_stage_closure(s)) for s in stages}
+    sourcecache.write(CLOSURE_CACHE, closures)
+    return closures
 
 
 def _stage_closure(stage: str) -> frozenset[str]:

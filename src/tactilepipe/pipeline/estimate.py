@@ -23,13 +23,27 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Callable, Iterable
 
+from tactilepipe.pipeline import sourcecache
+
 # (rule, wildcards, resources, threads) of one job, as Snakemake's DAG has it
 Job = tuple[str, dict, dict, int]
+FLOPS_CACHE = "forward-flops"
 
 
 @lru_cache(maxsize=None)
 def forward_flops(variant: str, depth: int, image_size: int, gam_channel_gate: str, width: int) -> float:
-    """FLOPs (multiply and add counted as two) of one frame pair through the model, inference mode."""
+    """FLOPs (multiply and add counted as two) of one frame pair through the model, inference mode.
+    Counting imports torch (about 6 s on 2 cores), so each count is kept for the exact source it
+    came from (sourcecache): a dry run that plans training does not pay it again."""
+    key = f"{variant} depth={depth} size={image_size} gate={gam_channel_gate} width={width}"
+    stored = sourcecache.read(FLOPS_CACHE)
+    if key not in stored:
+        stored = {**stored, key: _count_forward_flops(variant, depth, image_size, gam_channel_gate, width)}
+        sourcecache.write(FLOPS_CACHE, stored)
+    return float(stored[key])
+
+
+def _count_forward_flops(variant: str, depth: int, image_size: int, gam_channel_gate: str, width: int) -> float:
     import torch
     from torch.utils.flop_counter import FlopCounterMode
 
