@@ -82,6 +82,12 @@ rule tool_dataset:
         "--out-dir results/{wildcards.scene}/data 2> {log:q}"
 
 
+# A split is a second's work on the sample table: on a cluster it runs where Snakemake runs
+# instead of queueing as a job of its own (each scene has one per repeat and held-out tool).
+localrules:
+    tool_split,
+
+
 rule tool_split:
     input:
         samples="results/{scene}/data/samples.parquet",

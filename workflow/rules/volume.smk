@@ -18,6 +18,11 @@ rule volume_dataset:
         "{CLI} dataset {PARAMS_ARGS} --out {output.data:q} --qc {output.qc:q} 2> {log:q}"
 
 
+# a second's work on the dataset table: on a cluster it runs where Snakemake runs (as tool_split)
+localrules:
+    volume_split,
+
+
 rule volume_split:
     input:
         data=f"{VOLUME}/dataset.parquet",
