@@ -36,8 +36,8 @@ study000: $(STAMP)  ## unpack, ingest, train the full model under both protocols
 study000-published: $(STAMP)  ## the published weights over every frame (contaminated: a check of preprocessing)
 	cd studies/000 && PATH=$(CURDIR)/$(BIN):$$PATH dvc repro published
 
-test: $(STAMP)  ## the whole test suite (unit + smoke-scale integration through real Snakemake)
-	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest
+test: $(STAMP)  ## the whole test suite (unit + smoke-scale integration through real Snakemake), on 2 workers
+	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest -n 2 --dist loadgroup
 
 test-slurm: $(STAMP)  ## the smoke scale through a single-node SLURM cluster started here (root; apt-installs slurm-wlm, munge)
 	PATH=$(CURDIR)/$(BIN):$$PATH TACTILEPIPE_SLURM_TEST=1 $(BIN)/pytest -m slurm -v tests/integration/test_cluster.py

@@ -16,6 +16,20 @@ from support import bags
 
 PARAMS_PATH = REPO_ROOT / "params.yaml"
 
+
+
+@pytest.hookimpl(tryfirst=True)             # before pytest-xdist reads the groups
+def pytest_collection_modifyitems(items):
+    """Groups for `make test`, which runs the suite on two pytest-xdist workers (`--dist loadgroup`):
+    each worker builds the session and module fixtures of the tests it gets. So every module that
+    reads the shared smoke build runs on one worker, which builds it once, and each other module
+    stays whole, so its module fixtures are built once too."""
+    module = lambda item: item.nodeid.split("::")[0]
+    smoke_modules = {module(item) for item in items if "smoke_build" in getattr(item, "fixturenames", ())}
+    for item in items:
+        item.add_marker(pytest.mark.xdist_group("smoke_build" if module(item) in smoke_modules else module(item)))
+
+
 # Lifts simulated once for the whole test session (smoke scale: 100 Hz, pose at 50 Hz).
 SESSION_LIFTS = [(0.0, 0), (150.0, 1), (300.0, 2)]
 
