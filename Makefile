@@ -37,7 +37,7 @@ study000-published: $(STAMP)  ## the published weights over every frame (contami
 	cd studies/000 && PATH=$(CURDIR)/$(BIN):$$PATH dvc repro published
 
 test: $(STAMP)  ## the whole test suite (unit + smoke-scale integration through real Snakemake), on 2 workers
-	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest -n 2 --dist loadgroup
+	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest -n 2
 
 test-slurm: $(STAMP)  ## the smoke scale through a single-node SLURM cluster started here (root; apt-installs slurm-wlm, munge)
 	PATH=$(CURDIR)/$(BIN):$$PATH TACTILEPIPE_SLURM_TEST=1 $(BIN)/pytest -m slurm -v tests/integration/test_cluster.py

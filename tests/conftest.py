@@ -18,16 +18,31 @@ PARAMS_PATH = REPO_ROOT / "params.yaml"
 
 
 
-@pytest.hookimpl(tryfirst=True)             # before pytest-xdist reads the groups
+# The modules whose tests read the shared smoke build (tests/integration/conftest.py).
+SMOKE_BUILD_MODULES = {"tests/integration/test_cluster.py", "tests/integration/test_dvc_workflow.py",
+                       "tests/integration/test_workflow.py"}
+
+
+def pytest_xdist_make_scheduler(config, log):
+    """`make test` runs the suite on two pytest-xdist workers, and each worker builds the session
+    and module fixtures of the tests it gets. So the workers are handed whole modules, and the
+    modules that read the smoke build as one unit: it is built once, and so is every module's
+    fixture. (The scheduler sees only test ids; pytest_collection_modifyitems keeps the list true.)"""
+    from xdist.scheduler import LoadScopeScheduling
+
+    class ByModule(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            module = nodeid.split("::")[0]
+            return "the smoke build" if module in SMOKE_BUILD_MODULES else module
+
+    return ByModule(config, log)
+
+
 def pytest_collection_modifyitems(items):
-    """Groups for `make test`, which runs the suite on two pytest-xdist workers (`--dist loadgroup`):
-    each worker builds the session and module fixtures of the tests it gets. So every module that
-    reads the shared smoke build runs on one worker, which builds it once, and each other module
-    stays whole, so its module fixtures are built once too."""
-    module = lambda item: item.nodeid.split("::")[0]
-    smoke_modules = {module(item) for item in items if "smoke_build" in getattr(item, "fixturenames", ())}
-    for item in items:
-        item.add_marker(pytest.mark.xdist_group("smoke_build" if module(item) in smoke_modules else module(item)))
+    readers = {item.nodeid.split("::")[0] for item in items if "smoke_build" in getattr(item, "fixturenames", ())}
+    if readers - SMOKE_BUILD_MODULES:
+        raise pytest.UsageError(f"{', '.join(sorted(readers - SMOKE_BUILD_MODULES))} read the smoke build: "
+                                "add them to SMOKE_BUILD_MODULES in tests/conftest.py")
 
 
 # Lifts simulated once for the whole test session (smoke scale: 100 Hz, pose at 50 Hz).
