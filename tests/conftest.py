@@ -17,7 +17,6 @@ from support import bags
 PARAMS_PATH = REPO_ROOT / "params.yaml"
 
 
-
 # The modules whose tests read the shared smoke build (tests/integration/conftest.py).
 SMOKE_BUILD_MODULES = {"tests/integration/test_cluster.py", "tests/integration/test_dvc_workflow.py",
                        "tests/integration/test_workflow.py"}

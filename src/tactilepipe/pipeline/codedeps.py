@@ -24,9 +24,9 @@ from pathlib import Path
 
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.pipeline import sourcecache
+from tactilepipe.pipeline.sourcecache import PACKAGE_DIR
 
-PACKAGE = "tactilepipe"
-PACKAGE_DIR = Path(__file__).resolve().parents[1]     # src/tactilepipe
+PACKAGE = PACKAGE_DIR.name
 CLI_PACKAGE = f"{PACKAGE}.cli"
 ENTRY = f"{CLI_PACKAGE}.main"
 CLOSURE_CACHE = "stage-modules"
