@@ -4,6 +4,7 @@ Shared plain helpers (not fixtures) are in tests/support/."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -13,6 +14,7 @@ from tactilepipe.papillarray.shards import ingest_bag
 from tactilepipe.volume import simulate as vsim
 
 from support import bags
+from support.tool_data import TORCH_THREADS
 
 PARAMS_PATH = REPO_ROOT / "params.yaml"
 
@@ -35,6 +37,12 @@ def pytest_xdist_make_scheduler(config, log):
             return "the smoke build" if module in SMOKE_BUILD_MODULES else module
 
     return ByModule(config, log)
+
+
+def pytest_configure(config):
+    if os.environ.get("PYTEST_XDIST_WORKER"):          # in-process torch work: one thread per worker
+        import torch
+        torch.set_num_threads(TORCH_THREADS)
 
 
 def pytest_collection_modifyitems(items):

@@ -3,6 +3,7 @@ training configuration: what the trainer's tests train on."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +14,10 @@ from tactilepipe.tool.data.splits import label_stats
 from tactilepipe.tool.model.train import TrainConfig
 
 S = 32            # image size of the training tests (the smoke scale)
+# torch threads of a test: under `make test` two pytest-xdist workers share the two cores, and a
+# second thread per worker only oversubscribes them (a training test ran 8x slower beside the
+# other worker); a lone pytest gets both
+TORCH_THREADS = 1 if os.environ.get("PYTEST_XDIST_WORKER") else 2
 
 
 def make_dataset(root: Path, n_trials: int = 8, per_trial: int = 20, size: int = S, seed: int = 0,
@@ -60,7 +65,7 @@ def make_split_dict(data: ToolFrames) -> dict:
 def quick_cfg(**kw) -> TrainConfig:
     """A small, fast training set-up; every field spelled out (TrainConfig has no defaults)."""
     base = dict(variant="full", depth=18, image_size=S, lr=2e-4, lr_schedule="constant", batch_size=24, max_epochs=3,
-                patience=None, normalise="minmax", seed=7, device="auto", amp=True, num_threads=2,
+                patience=None, normalise="minmax", seed=7, device="auto", amp=True, num_threads=TORCH_THREADS,
                 max_train_batches_per_epoch=None, bn_recalibration_batches=20, gam_channel_gate="sigmoid",
                 width=16)
     return TrainConfig(**{**base, **kw})

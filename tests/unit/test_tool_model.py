@@ -21,7 +21,7 @@ from tactilepipe.tool.model.network import (DEPTHS, MIN_IMAGE_SIZE, PAPER_WIDTH,
 from tactilepipe.tool.model.train import scheduled_lr, train
 from tactilepipe.tool.model.inference import latency_ms, load_model, predict
 
-from support.tool_data import S, make_dataset, make_split_dict, quick_cfg
+from support.tool_data import S, TORCH_THREADS, make_dataset, make_split_dict, quick_cfg
 
 # Exact counts of this implementation (independent of the image size); the paper says "about 57 M"
 # for the full model on ResNet-101.
@@ -34,9 +34,9 @@ EXPECTED_PARAMS = {
 
 
 @pytest.fixture(autouse=True)
-def _two_threads():
+def _test_threads():
     saved = torch.get_num_threads()
-    torch.set_num_threads(2)
+    torch.set_num_threads(TORCH_THREADS)
     yield
     torch.set_num_threads(saved)
 
