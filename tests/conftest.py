@@ -20,23 +20,35 @@ PARAMS_PATH = REPO_ROOT / "params.yaml"
 
 
 # The modules whose tests read the shared smoke build (tests/integration/conftest.py).
-SMOKE_BUILD_MODULES = {"tests/integration/test_cluster.py", "tests/integration/test_dvc_workflow.py",
-                       "tests/integration/test_workflow.py"}
+SMOKE_BUILD_MODULES = {"tests/integration/test_cluster.py", "tests/integration/test_workflow.py"}
+SMOKE_BUILD_UNIT = "the smoke build"
+# The two longest units, handed out first so that neither waits behind the short ones: the DVC
+# workflow (its own smoke-scale project, then a chain of `dvc repro` runs), and the smoke build
+# with its readers (with the SLURM test on, the cluster run too).
+FIRST_UNITS = ["tests/integration/test_dvc_workflow.py", SMOKE_BUILD_UNIT]
+
+
+def work_unit(nodeid: str) -> str:
+    """What `make test` hands a worker whole: a module, or every module that reads the smoke build.
+    Each worker builds the session and module fixtures of the tests it gets, so the build and each
+    module's fixtures are made once."""
+    module = nodeid.split("::")[0]
+    return SMOKE_BUILD_UNIT if module in SMOKE_BUILD_MODULES else module
 
 
 def pytest_xdist_make_scheduler(config, log):
-    """`make test` runs the suite on two pytest-xdist workers, and each worker builds the session
-    and module fixtures of the tests it gets. So the workers are handed whole modules, and the
-    modules that read the smoke build as one unit: it is built once, and so is every module's
-    fixture. (The scheduler sees only test ids; pytest_collection_modifyitems keeps the list true.)"""
+    """`make test` runs the suite on two pytest-xdist workers, which get whole work units, in
+    collection order (pytest_collection_modifyitems puts FIRST_UNITS first; xdist's default would
+    hand out the units with the most tests first)."""
     from xdist.scheduler import LoadScopeScheduling
 
-    class ByModule(LoadScopeScheduling):
-        def _split_scope(self, nodeid: str) -> str:
-            module = nodeid.split("::")[0]
-            return "the smoke build" if module in SMOKE_BUILD_MODULES else module
+    config.option.loadscopereorder = False
 
-    return ByModule(config, log)
+    class ByWorkUnit(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return work_unit(nodeid)
+
+    return ByWorkUnit(config, log)
 
 
 def pytest_configure(config):
@@ -46,10 +58,13 @@ def pytest_configure(config):
 
 
 def pytest_collection_modifyitems(items):
+    # the scheduler sees only test ids: a module that reads the smoke build must be listed
     readers = {item.nodeid.split("::")[0] for item in items if "smoke_build" in getattr(item, "fixturenames", ())}
     if readers - SMOKE_BUILD_MODULES:
         raise pytest.UsageError(f"{', '.join(sorted(readers - SMOKE_BUILD_MODULES))} read the smoke build: "
                                 "add them to SMOKE_BUILD_MODULES in tests/conftest.py")
+    rank = {unit: i for i, unit in enumerate(FIRST_UNITS)}
+    items.sort(key=lambda item: rank.get(work_unit(item.nodeid), len(FIRST_UNITS)))      # stable
 
 
 # Lifts simulated once for the whole test session (smoke scale: 100 Hz, pose at 50 Hz).

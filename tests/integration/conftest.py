@@ -12,15 +12,13 @@ from pathlib import Path
 
 import pytest
 
-from support.project import copy_project, snakemake
+from support.project import build, copy_project
 
 
 @pytest.fixture(scope="session")
 def smoke_build(tmp_path_factory) -> Path:
     wd = copy_project(tmp_path_factory.mktemp("smoke_build"), scale="smoke")
-    # with the default profile, as `make run` and a checkout's plain `snakemake` use it: Snakemake
-    # records input checksums, which later compare a touched but unchanged file as unchanged
-    snakemake(wd, "--workflow-profile", "workflow/profiles/default")
+    build(wd)
     yield wd
     shutil.rmtree(wd, ignore_errors=True)        # recordings, shards and models: tens of MB
 

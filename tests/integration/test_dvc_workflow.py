@@ -23,7 +23,7 @@ import pytest
 import yaml
 
 from support.dvc_graph import covers, dvc_stages
-from support.project import BIN, REPO, dvc, git, run, snakemake
+from support.project import BIN, REPO, build, copy_project, dvc, git, run, snakemake
 
 pytestmark = pytest.mark.integration
 
@@ -63,19 +63,23 @@ def tracked_files(wd: Path) -> dict[str, bytes]:
 
 
 @pytest.fixture(scope="module")
-def repo(tmp_path_factory, smoke_build) -> dict:
+def repo(tmp_path_factory) -> dict:
     """A git + DVC project at the smoke scale, reproduced, committed and pushed to a local remote.
-    It starts as a copy of the shared smoke build (tests/integration/conftest.py): `dvc repro` runs
-    every stage, and DVC records and caches every output."""
+    As a user would: the pipeline is built first with Snakemake (`make run`), then `dvc repro` runs
+    every stage, and DVC records and caches every output. The project is this module's own (not
+    the shared smoke build): so `make test` can run it on one worker while the shared build and
+    its readers run on the other."""
     root = tmp_path_factory.mktemp("dvcflow")
     wd = root / "project"
-    shutil.copytree(smoke_build, wd, symlinks=True)          # file times kept: Snakemake's view unchanged
+    wd.mkdir()
+    copy_project(wd, scale="smoke")
     shutil.copy(REPO / ".gitignore", wd / ".gitignore")
     # two of the four model variants: the new tool session below retrains every run of the tool
     # scenes, and these two are enough to show it (the reports do not re-train: no model re-runs)
     params = (wd / "params.yaml").read_text()
     assert params.count(f"  variants: {ALL_VARIANTS}\n") == 1
     (wd / "params.yaml").write_text(params.replace(f"  variants: {ALL_VARIANTS}\n", f"  variants: {VARIANTS}\n"))
+    build(wd)
     git(wd, "init", "-q")
     git(wd, "config", "user.email", "test@example.com")
     git(wd, "config", "user.name", "test")
