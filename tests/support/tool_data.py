@@ -67,5 +67,5 @@ def quick_cfg(**kw) -> TrainConfig:
     base = dict(variant="full", depth=18, image_size=S, lr=2e-4, lr_schedule="constant", batch_size=24, max_epochs=3,
                 patience=None, normalise="minmax", seed=7, device="auto", amp=True, num_threads=TORCH_THREADS,
                 max_train_batches_per_epoch=None, bn_recalibration_batches=20, gam_channel_gate="sigmoid",
-                width=16)
+                width=16, kernels="native")
     return TrainConfig(**{**base, **kw})

@@ -63,11 +63,13 @@ def cmd_tool_split(args) -> None:
 
 
 def cmd_tool_train(args) -> None:
-    from tactilepipe.tool.model.run import train_and_predict
+    from tactilepipe.tool.model.kernels import use_kernels
     p = stage_params(args, "seed", "tool_train.lr", "tool_train.lr_schedule", "tool_train.batch_size",
                 "tool_train.max_epochs", "tool_train.patience", "tool_train.max_train_batches_per_epoch",
                 "tool_train.bn_recalibration_batches", "tool_train.device", "tool_train.amp", "tool_train.num_threads",
-                "tool_train.gam_channel_gate", "tool_train.width")
+                "tool_train.gam_channel_gate", "tool_train.width", "tool_train.kernels")
+    use_kernels(p["tool_train"]["kernels"])          # before torch loads: the portable pins are read then
+    from tactilepipe.tool.model.run import train_and_predict
     result = train_and_predict(args.scene, Path(args.data_dir), Path(args.split), Path(args.out_dir), args.variant,
                                args.depth, args.image_size, p["tool_train"], p["seed"], progress=not args.quiet)
     print(json.dumps({k: result[k] for k in ("variant", "depth", "image_size", "mae", "rmse", "r2", "train_s",
@@ -88,6 +90,19 @@ def cmd_predict(args) -> None:
     p = stage_params(args, "tool_ingest.ros_topics", "tool_ingest.image_size", "predict")
     stream_predictions(Path(args.checkpoint), Path(args.trial), args.format, p, limit=args.limit,
                        label_range=args.label_range)
+
+
+def cmd_portability(args) -> None:
+    from tactilepipe.core.atomic import write_json
+    from tactilepipe.tool.report import portability
+    results, record = Path(args.results), Path(args.record)
+    if args.new:
+        rec = portability.new_record(results)
+        write_json(record, rec)
+        print(f"{record}: started with {len(rec['runs'])} runs on {portability.describe(rec['machines'][0]['kind'])}")
+        return
+    for note in portability.check(results, record):
+        print(f"{record}: {note}")
 
 
 def cmd_report_tool_data(args) -> None:
@@ -151,6 +166,15 @@ def add_parsers(sub, common, provenance) -> None:
     s.add_argument("--runs", nargs="+", required=True,
                    help="every run of the scene (results/<scene>/models/<run>; names as in pipeline/runs.py)")
     s.set_defaults(func=cmd_tool_report)
+
+    s = sub.add_parser("portability", help="compare a smoke build's tool runs with results/portability.json: the "
+                                           "same bytes on every machine kind (adds this one when new)")
+    s.add_argument("--results", default="results", help="results folder of a smoke-scale build (make smoke)")
+    s.add_argument("--record", default="results/portability.json", help="the record to check and extend")
+    s.add_argument("--new", action="store_true",
+                   help="start the record again from this build and machine (after a deliberate change of the "
+                        "training code, its parameters or the data)")
+    s.set_defaults(func=cmd_portability)
 
     s = sub.add_parser("predict", parents=[common], help="stream a recorded trial through a trained model")
     s.add_argument("--checkpoint", required=True, help="e.g. results/tool_normal/models/full/best.pt")

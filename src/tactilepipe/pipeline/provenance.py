@@ -21,8 +21,9 @@ from tactilepipe.core.config import declared
 from tactilepipe.core.hashing import file_sha256
 
 PACKAGES = ("torch", "numpy", "scikit-learn", "pandas")
-# environment variables that cap the instruction set of torch's and oneDNN's kernels
-KERNEL_VARIABLES = ("ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA", "DNNL_MAX_CPU_ISA", "OMP_NUM_THREADS")
+# environment variables that choose the code of torch's, oneDNN's and MKL's kernels
+KERNEL_VARIABLES = ("ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA", "DNNL_MAX_CPU_ISA", "MKL_CBWR",
+                    "MKL_ENABLE_INSTRUCTIONS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 def session_hash(path: str | Path) -> str:
@@ -57,18 +58,24 @@ def environment() -> dict:
 
 
 def _cpu() -> dict:
-    """CPU model and the vector extensions the math libraries choose kernels by (Linux)."""
-    model, flags = platform.processor() or None, set()
+    """CPU vendor, model (name, family and number: a model name such as "AMD EPYC" covers several
+    generations) and the vector extensions the math libraries choose kernels by (Linux)."""
+    model, flags, fields = platform.processor() or None, set(), {}
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
             key, _, value = line.partition(":")
-            if key.strip() == "model name" and value.strip():
-                model = value.strip()
-            elif key.strip() == "flags":
+            key, value = key.strip(), value.strip()
+            if key == "model name" and value:
+                model = value
+            elif key == "flags":
                 flags = set(value.split())
+            elif key in ("vendor_id", "cpu family", "model") and key not in fields:
+                fields[key] = value
     except OSError:
         pass
-    return {"model": model, "vector_extensions": sorted(f for f in flags if f.startswith(("avx", "amx", "fma")))}
+    return {"model": model, "vendor": fields.get("vendor_id"), "family": fields.get("cpu family"),
+            "model_number": fields.get("model"),
+            "vector_extensions": sorted(f for f in flags if f.startswith(("avx", "amx", "fma")))}
 
 
 def git_state(root: str | Path = ".") -> dict:

@@ -68,8 +68,8 @@ def load_checkpoint(path: Path, raw=None) -> dict:
 
 
 # settings a checkpoint may not record, because it was written before they existed: the only
-# value each had then (sigmoid-gated GAMs, the paper's width)
-UNRECORDED = {"gam_channel_gate": "sigmoid", "width": PAPER_WIDTH}
+# value each had then (sigmoid-gated GAMs, the paper's width, the libraries' own kernels)
+UNRECORDED = {"gam_channel_gate": "sigmoid", "width": PAPER_WIDTH, "kernels": "native"}
 
 
 def settings_diff(ckpt: dict, cfg: TrainConfig, split: dict, data) -> dict:

@@ -51,7 +51,8 @@ def train_and_predict(scene: str, data_dir: Path, split_path: Path, out_dir: Pat
               "split": split["name"], "train_s": summary["train_wall_s"], "epochs": summary["epochs_run"],
               "best_epoch": summary["best_epoch"],
               "resumed_from_epoch": summary["resumed_from_epoch"], "parameters": summary["parameters"],
-              "latency_ms": latency_ms(model, image_size, n=20), "predict_s": predict_s, "device": summary["device"]}
+              "latency_ms": latency_ms(model, image_size, n=20), "predict_s": predict_s, "device": summary["device"],
+              "kernels": summary["kernels"]}
     write_json(out_dir / "eval.json", result)
     # last.pt (weights + Adam state, 3x best.pt) only serves to resume an interrupted run
     (out_dir / "last.pt").unlink(missing_ok=True)

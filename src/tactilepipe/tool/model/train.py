@@ -32,6 +32,7 @@ from torch import nn
 from tactilepipe.core.errors import ConfigError, TactilepipeError
 from tactilepipe.tool.model.checkpoint import (CHECKPOINT_FORMAT, data_fingerprint, load_checkpoint, save_checkpoint,
                                                settings_diff, split_fingerprint, write_history)
+from tactilepipe.tool.model.kernels import check_mode, require_active
 from tactilepipe.tool.model.network import build_model, count_parameters
 
 LR_SCHEDULES = ("constant", "cosine")
@@ -59,6 +60,7 @@ class TrainConfig:
                                         # each validation (0: keep the running averages)
     gam_channel_gate: str               # sigmoid (ours) | none (the public code's GAM channel branch)
     width: int                          # channels of the first encoder stage (the paper: 64); all scale with it
+    kernels: str                        # portable | native: numerical kernels (tool/model/kernels.py)
     channels_last: bool = True          # NHWC memory format (faster on CPU); not a parameter
 
     @classmethod
@@ -71,7 +73,7 @@ class TrainConfig:
                    patience=t["patience"], device=t["device"], amp=t["amp"], num_threads=t["num_threads"],
                    max_train_batches_per_epoch=t["max_train_batches_per_epoch"] or None,
                    bn_recalibration_batches=t["bn_recalibration_batches"], gam_channel_gate=t["gam_channel_gate"],
-                   width=t["width"])
+                   width=t["width"], kernels=t["kernels"])
 
 
 # ----------------------------------------------------------------------------- label scaling
@@ -155,6 +157,11 @@ def _check_data(data, split: dict, cfg: TrainConfig) -> tuple[np.ndarray, np.nda
     normalise(0.0, split["label_stats"], cfg.normalise)   # validates the mode
     if cfg.lr_schedule not in LR_SCHEDULES:
         raise ConfigError(f"unknown lr_schedule '{cfg.lr_schedule}' (one of {', '.join(LR_SCHEDULES)})")
+    check_mode(cfg.kernels)
+    if cfg.kernels == "portable" and cfg.num_threads not in (None, 1):
+        raise ConfigError(f"tool_train.num_threads {cfg.num_threads} with kernels: portable, which runs on one "
+                          f"thread (the bytes of a model depend on the thread count): set num_threads: 1, or "
+                          f"kernels: native")
     return train_idx, val_idx
 
 
@@ -184,6 +191,9 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
     out_dir = Path(out_dir)
     train_idx, val_idx = _check_data(data, split, cfg)
     device = resolve_device(cfg.device)
+    if cfg.kernels == "portable" and device.type != "cpu":
+        raise ConfigError(f"tool_train.kernels: portable pins CPU kernels, but the run is on {device}: "
+                          f"set kernels: native for a GPU run")
     use_amp = bool(cfg.amp) and device.type == "cuda"
     stats = split["label_stats"]
     meta = {"variant": cfg.variant, "depth": cfg.depth, "image_size": cfg.image_size,
@@ -196,6 +206,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
     try:
         if cfg.num_threads:
             torch.set_num_threads(int(cfg.num_threads))
+        kernels = require_active(cfg.kernels) if device.type == "cpu" else {"mode": cfg.kernels}
         _use_deterministic_algorithms(True, warn_only=device.type != "cpu")
         torch.manual_seed(cfg.seed)
         model = build_model(cfg.variant, cfg.depth, cfg.image_size, cfg.gam_channel_gate, cfg.width).to(device)
@@ -289,7 +300,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
             if progress:
                 tqdm.write(f"epoch {epoch}: train {train_loss:.4f}  val {val_loss:.4f}  val MAE {val_mae:.3f} N  "
                            f"({epoch_s:.1f} s)", file=sys.stderr)
-        return _summary(state, meta, device, resumed_from)
+        return {**_summary(state, meta, device, resumed_from), "kernels": kernels}
     finally:
         torch.set_num_threads(saved[0])
         _use_deterministic_algorithms(saved[1], warn_only=saved[2])

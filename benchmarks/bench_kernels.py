@@ -1,0 +1,51 @@
+"""Training throughput with portable kernels against native ones, side by side.
+
+``tool_train.kernels: portable`` trades speed for bytes that do not depend on the CPU
+(tool/model/kernels.py): no oneDNN, MKL's COMPATIBLE branch, ATen at AVX2, one thread. This prints
+what that costs, as frame pairs per second of training (forward, backward and Adam step on random
+data at the default scale's input size, batch and depth), at the default scale's width and the
+smoke scale's, each mode in its own process (the pins are read when torch loads), one thread
+each, one after the other.
+
+Usage: python benchmarks/bench_kernels.py [--steps 30]
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing as mp
+from pathlib import Path
+
+from tactilepipe.core.config import load_params
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _throughput(args: tuple) -> tuple[float, dict]:
+    mode, variant, depth, size, batch, gate, width, steps = args
+    from tactilepipe.tool.model.kernels import use_kernels
+    active = use_kernels(mode)                      # first thing in the fresh process, before torch loads
+    from bench_train_jobs import train_throughput
+    return train_throughput(variant, depth, size, batch, gate, width, steps=steps, num_threads=1), active
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--steps", type=int, default=30)
+    args = ap.parse_args()
+    ctx = mp.get_context("spawn")
+    print(f"{'scale':8s} {'width':>5s} {'native pairs/s':>15s} {'portable pairs/s':>17s} {'portable / native':>18s}")
+    for scale in ("default", "smoke"):
+        tt = load_params(REPO / "params.yaml", {"scale": scale})["tool_train"]
+        spec = ("full", tt["depth"], tt["image_size"], tt["batch_size"], tt["gam_channel_gate"], tt["width"], args.steps)
+        rates = {}
+        for mode in ("native", "portable"):
+            with ctx.Pool(1) as pool:              # a new process per mode
+                rates[mode], active = pool.map(_throughput, [(mode, *spec)])[0]
+        print(f"{scale:8s} {tt['width']:5d} {rates['native']:15.0f} {rates['portable']:17.0f} "
+              f"{rates['portable'] / rates['native']:18.2f}")
+    print(f"portable kernels in force: {active}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,102 @@
+"""The tool models' bytes travel: the smoke build's runs equal results/portability.json on this
+machine (a new machine kind is added to it), and within one machine, emulated CPUs (lower
+instruction sets, other thread counts) train the same bytes with portable kernels but not with
+native ones, so the comparison can fail."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from support.project import BIN, ENV, REPO
+from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.tool.report import portability
+
+RECORD = REPO / "results" / "portability.json"
+
+
+def test_the_smoke_runs_are_the_recorded_bytes_on_this_machine(smoke_build: Path):
+    notes = portability.check(smoke_build / "results", RECORD)      # raises, naming runs and CPUs, on a difference
+    record = json.loads(RECORD.read_text())
+    assert any(m["kind"] == portability.machine_kind() for m in record["machines"])
+    assert len(record["runs"]) >= 24 and "runs identical to the record" in notes[0]
+    print(notes[0])
+
+
+def test_a_changed_run_is_named_with_both_machines(smoke_build: Path, tmp_path: Path):
+    record = json.loads(RECORD.read_text())
+    record["machines"] = [{**record["machines"][0], "kind": {**record["machines"][0]["kind"], "cpu": "Other CPU"}}]
+    record["runs"]["tool_shear/no_ref"]["predictions"] = "0" * 64
+    (tmp_path / "r.json").write_text(json.dumps(record))
+    with pytest.raises(TactilepipeError) as err:
+        portability.check(smoke_build / "results", tmp_path / "r.json")
+    msg = str(err.value)
+    assert "tool_shear/no_ref: predictions differ" in msg and "Other CPU" in msg
+    assert portability.describe(portability.machine_kind()) in msg
+    assert json.loads((tmp_path / "r.json").read_text())["machines"] == record["machines"]     # nothing added
+
+    record = json.loads(RECORD.read_text())
+    record["recipe"]["digest"] = "another"
+    record["recipe"]["parts"]["tool_normal"]["params"]["seed"] = 1
+    (tmp_path / "r.json").write_text(json.dumps(record))
+    with pytest.raises(TactilepipeError, match="recorded for another recipe .*tool_normal: params"):
+        portability.check(smoke_build / "results", tmp_path / "r.json")
+
+
+def _train(build: Path, out: Path, kernels: str, env: dict, num_threads: int = 1) -> str:
+    """sha256 of the weights and predictions of the smoke build's full model on its trial split,
+    trained again by the real stage under ``env``."""
+    override = {"tool_train": {"kernels": kernels, "num_threads": num_threads}}
+    cmd = [str(BIN / "tactilepipe"), "tool-train", "--scale", "smoke", "--override", json.dumps(override),
+           "--scene", "tool_normal", "--variant", "full", "--data-dir", "results/tool_normal/data",
+           "--split", "results/tool_normal/splits/trial.json", "--depth", "18", "--image-size", "16",
+           "--out-dir", str(out), "--quiet"]
+    inherited = {k: v for k, v in ENV.items() if k not in EMULATED_VARIABLES}    # the caller's shell emulates nothing
+    proc = subprocess.run(cmd, cwd=build, capture_output=True, text=True,
+                          env={**inherited, "PYTHONPATH": str(build / "src"), **env})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return hashlib.sha256((portability.weights_digest(out / "best.pt")
+                           + portability.predictions_digest(out / "predictions.parquet")).encode()).hexdigest()
+
+
+# each stands in for another kind of CPU: an older or narrower instruction set, or another thread count
+EMULATIONS = {
+    "ATen without vector code": {"ATEN_CPU_CAPABILITY": "default"},
+    "oneDNN capped to SSE4.1": {"ONEDNN_MAX_CPU_ISA": "SSE41"},
+    "MKL capped to AVX2": {"MKL_ENABLE_INSTRUCTIONS": "AVX2"},
+    "2 OpenMP/MKL threads": {"OMP_NUM_THREADS": "2", "MKL_NUM_THREADS": "2"},
+}
+EMULATED_VARIABLES = {k for env in EMULATIONS.values() for k in env}
+
+
+@pytest.mark.slow
+def test_emulated_cpus_train_the_same_bytes_with_portable_kernels_only(smoke_build: Path, tmp_path: Path):
+    base = _train(smoke_build, tmp_path / "portable", "portable", {})
+    for name, env in EMULATIONS.items():
+        assert _train(smoke_build, tmp_path / f"portable {name}", "portable", env) == base, \
+            f"portable kernels gave other bytes with {name} ({env})"
+
+    native = _train(smoke_build, tmp_path / "native", "native", {})
+    assert native != base
+    moved = [name for name, env in EMULATIONS.items()
+             if _train(smoke_build, tmp_path / f"native {name}", "native", env) != native]
+    if _train(smoke_build, tmp_path / "native 2 threads", "native", {}, num_threads=2) != native:
+        moved.append("2 intra-op threads")
+    print("native kernels moved under:", ", ".join(moved))
+    assert "oneDNN capped to SSE4.1" in moved, moved       # the emulation can tell kernels apart
+
+
+def test_portable_kernels_refuse_more_than_one_thread(smoke_build: Path, tmp_path: Path):
+    override = {"tool_train": {"kernels": "portable", "num_threads": 2}}
+    proc = subprocess.run([str(BIN / "tactilepipe"), "tool-train", "--scale", "smoke", "--override",
+                           json.dumps(override), "--scene", "tool_normal", "--variant", "full",
+                           "--data-dir", "results/tool_normal/data", "--split", "results/tool_normal/splits/trial.json",
+                           "--depth", "18", "--image-size", "16", "--out-dir", str(tmp_path / "o"), "--quiet"],
+                          cwd=smoke_build, capture_output=True, text=True,
+                          env={**ENV, "PYTHONPATH": str(smoke_build / "src")})
+    assert proc.returncode == 2
+    assert "num_threads 2 with kernels: portable" in proc.stderr and "Traceback" not in proc.stderr

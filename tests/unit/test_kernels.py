@@ -1,0 +1,48 @@
+"""The kernel modes: a portable run refuses to start on settings that are not portable, instead of
+recording bytes no other machine can reproduce (the bytes themselves: tests/integration/test_portability.py)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from tactilepipe.core.errors import ConfigError, TactilepipeError
+from tactilepipe.tool.model import kernels
+
+
+def test_an_unknown_mode_is_refused():
+    with pytest.raises(ConfigError, match="unknown tool_train.kernels 'fast'"):
+        kernels.check_mode("fast")
+
+
+def test_portable_cannot_be_chosen_after_torch_loaded_without_it(monkeypatch):
+    import torch  # noqa: F401  (this process has torch, loaded without the portable pins)
+    monkeypatch.delenv("MKL_CBWR", raising=False)
+    with pytest.raises(TactilepipeError, match="before torch is loaded.*MKL_CBWR=None"):
+        kernels.use_kernels("portable")
+
+
+def test_a_process_without_the_pins_is_not_portable():
+    with pytest.raises(TactilepipeError, match="portable kernels are not in force: .*MKL's reproducible branch is"):
+        kernels.require_active("portable")
+    assert kernels.require_active("native")["mode"] == "native"
+
+
+def test_a_fresh_process_gets_every_pin():
+    code = ("from tactilepipe.tool.model.kernels import use_kernels; import json; "
+            "print(json.dumps(use_kernels('portable')))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert proc.stdout.strip() == ('{"mode": "portable", "aten_capability": "AVX2", "mkl_cbwr": "COMPATIBLE", '
+                                   '"onednn": false, "nnpack": false, "threads": 1}')
+
+
+def test_training_refuses_portable_kernels_on_two_threads(tmp_path):
+    from support.tool_data import make_dataset, make_split_dict, quick_cfg
+    from tactilepipe.tool.data.loader import ToolFrames
+    from tactilepipe.tool.model.train import train
+    data = ToolFrames(make_dataset(tmp_path / "data", n_trials=8, per_trial=4), "normal")
+    with pytest.raises(ConfigError, match="num_threads 2 with kernels: portable"):
+        train(data, make_split_dict(data), quick_cfg(kernels="portable", num_threads=2), tmp_path / "run")
+    assert not (tmp_path / "run").exists()
