@@ -195,11 +195,12 @@ def test_the_cli_hands_device_and_amp_to_the_trainer(tiny_data, tmp_path, monkey
 
     monkeypatch.setattr(train_mod, "train", fake_train)
     code = cli.main(["tool-train", "--params", str(REPO / "params.yaml"), "--scale", "smoke", "--override",
-                     json.dumps({"tool_train": {"device": "cuda", "amp": False}}), "--scene", "tool_normal",
+                     json.dumps({"tool_train": {"device": "cuda", "amp": False, "kernels": "native"}}),
+                     "--scene", "tool_normal",
                      "--variant", "full", "--data-dir", str(root), "--split", str(split), "--depth", "18",
                      "--image-size", "32", "--out-dir", str(tmp_path / "out"), "--quiet"])
     assert code == 2
-    assert seen["cfg"].device == "cuda" and seen["cfg"].amp is False
+    assert seen["cfg"].device == "cuda" and seen["cfg"].amp is False and seen["cfg"].kernels == "native"
 
 
 # ----------------------------------------------------------------------------- a real SLURM cluster

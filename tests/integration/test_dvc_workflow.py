@@ -24,6 +24,7 @@ import yaml
 
 from support.dvc_graph import covers, dvc_stages
 from support.project import BIN, REPO, build, copy_project, dvc, git, run, snakemake
+from tactilepipe.pipeline.scenes import TOOL_SCENES
 
 pytestmark = pytest.mark.integration
 
@@ -283,6 +284,33 @@ def test_experiments_rerun_only_the_stages_of_the_changed_params(repo, new_sessi
     git(wd, "checkout", "--", ".")
     dvc(wd, "checkout", "--force")
     assert "up to date" in dvc(wd, "status").stdout.lower()
+    run([str(BIN / "python"), "workflow/scripts/mark_pulled.py"], wd)
+    assert _planned_rules(wd) == set()
+
+
+def test_diff_tells_a_retrained_model_from_noise_and_fails_on_a_regression(repo, new_session):
+    wd = repo["wd"]
+    tp = [str(BIN / "tactilepipe"), "diff"]
+    same = run(tp, wd)                                   # HEAD against the workspace: the committed build
+    assert same.stdout.count(": unchanged") == 4, same.stdout
+    # a training parameter: every model of the tool scenes trains again on the same splits
+    dvc_out(wd, "exp", "run", "-n", "lr-up", "-S", "tool_train.lr=0.001")
+    report = json.loads(run([*tp, "HEAD", "lr-up", "--json"], wd).stdout)
+    assert report["volume"]["verdict"] == report["drift"]["verdict"] == "unchanged", report["volume"]
+    scored = [r for scene in TOOL_SCENES for r in report[scene]["rows"] if r["how"].startswith("paired")]
+    assert {r["model"] for r in scored} >= {"full", "no_ref"} and all(r["how"] == "paired over 2 draws" for r in scored)
+    assert {r["verdict"] for r in scored} <= {"signal", "noise"}
+    assert not any(r["model"].startswith("baseline") for r in scored)    # the baselines do not train
+    md = run([*tp, "HEAD", "lr-up"], wd).stdout
+    assert "| full | mae |" in md and "**tool_normal**:" in md
+    # --fail-on: exit 1 past the worst worsening of a score, 0 short of it
+    metric, worst = max(((r["metric"], r["worse_by"]) for r in scored), key=lambda mw: mw[1])
+    assert worst > 0, scored
+    failing = run([*tp, "HEAD", "lr-up", "--fail-on", f"{metric}={worst / 2}"], wd, check=False)
+    assert failing.returncode == 1 and f"{metric} worse by" in failing.stderr, failing.stderr
+    assert run([*tp, "HEAD", "lr-up", "--fail-on", f"{metric}={worst * 2}"], wd, check=False).returncode == 0
+    git(wd, "checkout", "--", ".")
+    dvc(wd, "checkout", "--force")
     run([str(BIN / "python"), "workflow/scripts/mark_pulled.py"], wd)
     assert _planned_rules(wd) == set()
 

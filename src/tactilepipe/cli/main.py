@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from tactilepipe.cli import drift, study000, tool, volume
+from tactilepipe.cli import compare, drift, study000, tool, volume
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.pipeline.scenes import TOOL_SCENES
 
@@ -47,7 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--session-meta", help="drift: the session's session.json (reference weight)")
     s.set_defaults(func=cmd_report)
 
-    for study in (volume, tool, study000):   # drift has only `simulate drift` and `report drift`
+    for study in (volume, tool, study000, compare):   # drift has only `simulate drift` and `report drift`
         study.add_parsers(sub, common, provenance)
     return parser
 
@@ -55,7 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        args.func(args)
+        status = args.func(args)          # a command may return an exit status (diff: 1 on a regression)
     except TactilepipeError as exc:
         print(f"tactilepipe {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
         # a file that vanished. One line naming the file, no traceback.
         print(f"tactilepipe {args.command}: error: {_os_error_line(exc)}", file=sys.stderr)
         return 1
-    return 0
+    return status or 0
 
 
 def _os_error_line(exc: OSError) -> str:

@@ -1,0 +1,62 @@
+"""Comparing two runs of the whole pipeline: `tactilepipe diff`."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+from tactilepipe.core.errors import ArgumentError
+
+
+def _tolerances(items: list[str]) -> dict[str, float]:
+    out = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise ArgumentError(f"--fail-on {item!r}: expected METRIC=TOLERANCE, e.g. mae=0.05") from None
+    return out
+
+
+def cmd_diff(args) -> int:
+    from tactilepipe.core.atomic import write_text
+    from tactilepipe.pipeline import diff
+    if len(args.revs) > 2:
+        raise ArgumentError(f"diff takes at most two runs, got {len(args.revs)}: {' '.join(args.revs)}")
+    tolerances = _tolerances(args.fail_on)
+    old_rev = args.revs[0] if args.revs else "HEAD"
+    new_rev = args.revs[1] if len(args.revs) == 2 else None
+    scenes = args.scenes or list(diff.SCENES)
+    unknown = set(scenes) - set(diff.SCENES)
+    if unknown:
+        raise ArgumentError(f"unknown scene(s) {', '.join(sorted(unknown))} (one of {', '.join(diff.SCENES)})")
+    diffs = diff.diff_runs(diff.read_run(old_rev, args.repo), diff.read_run(new_rev, args.repo), scenes)
+    text = (json.dumps(diff.as_json(diffs), indent=1, sort_keys=True) + "\n" if args.json
+            else diff.markdown(diffs, old_rev, new_rev or "workspace", show_same=args.all))
+    if args.out:
+        write_text(args.out, text)
+    else:
+        sys.stdout.write(text)
+    failed = diff.failures(diffs, tolerances)
+    for r in failed:
+        print(f"tactilepipe diff: {r.scene}: {r.label} worse by {r.worse_by:.4g} "
+              f"(tolerance {tolerances[r.metric.rsplit('.', 1)[-1]]:g}; {r.verdict})", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def add_parsers(sub, common, provenance) -> None:
+    s = sub.add_parser("diff", help="compare the metrics of two runs (git revisions, DVC experiments or the "
+                                    "workspace), each change classed as signal or noise")
+    s.add_argument("revs", nargs="*", metavar="RUN",
+                   help="none: HEAD against the workspace; one: it against the workspace; two: the first "
+                        "against the second. A git revision or a DVC experiment's name")
+    s.add_argument("--scenes", nargs="+", help="only these scenes (default: every scene)")
+    s.add_argument("--fail-on", nargs="+", default=[], metavar="METRIC=TOL",
+                   help="exit 1 when a metric (mae, rmse, r2, or a value's last name) of any model got worse "
+                        "by more than TOL, e.g. --fail-on mae=0.05 r2=0.01")
+    s.add_argument("--json", action="store_true", help="JSON instead of Markdown")
+    s.add_argument("--all", action="store_true", help="also list what did not change")
+    s.add_argument("--out", help="write the report here instead of standard output")
+    s.add_argument("--repo", default=".", help="the project (default: here)")
+    s.set_defaults(func=cmd_diff)

@@ -1,0 +1,284 @@
+"""Two runs of the pipeline compared metric by metric, each change classed as signal or noise.
+
+A run is a git revision, a DVC experiment or the workspace; its files are read through DVC
+(``dvc.api.read``), so each is what `dvc metrics diff` and `dvc exp show` see. For every scene:
+
+- **scored series**, a score measured on repeated draws: each tool model's (variant's and
+  baseline's) MAE, RMSE and R² over the repeated splits, each volume input's R² over the folds.
+  When both runs drew the same splits (the same recordings, and the same code and parameters of
+  every stage before the models: ``provenance.json``), the change is judged **paired**: the
+  interval of the per-draw differences (the same corrected resampled t as the reports) either
+  excludes zero (signal) or not (noise). Otherwise the two runs' own intervals are compared:
+  disjoint is signal, overlapping noise.
+- **single values** (the drift fits, the volume table, ...): the pipeline makes them
+  deterministically, so any change is reported as changed, with no noise estimate.
+
+A scene's verdict is one line: unchanged, changes within noise only, or the signals, worst first.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+
+from tactilepipe.core.errors import InputError
+from tactilepipe.core.intervals import paired_difference
+from tactilepipe.pipeline.scenes import TOOL_SCENES
+
+SCENES = ("volume", "drift", *TOOL_SCENES)
+# stages whose change leaves the draws (splits, folds) alone: the models and their report
+MODEL_STAGES = {"cmd_tool_train", "cmd_tool_report", "cmd_train", "cmd_gridsearch", "cmd_baseline",
+                "cmd_report_volume", "cmd_report_drift"}
+LOWER_IS_BETTER = {"mae", "rmse"}
+HIGHER_IS_BETTER = {"r2", "loo_r2"}
+TOOL_SCORES = ("mae", "rmse", "r2")
+
+
+@dataclass
+class Row:
+    scene: str
+    model: str
+    metric: str
+    old: float | str | bool | None
+    new: float | str | bool | None
+    verdict: str                       # same | noise | signal | changed | added | removed
+    how: str = ""                      # paired over K draws | intervals | single value
+    low: float = math.nan              # interval of the change, where judged
+    high: float = math.nan
+
+    @property
+    def change(self) -> float:
+        numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (self.old, self.new))
+        return (self.new - self.old) if numbers else math.nan
+
+    @property
+    def label(self) -> str:
+        return f"{self.model} {self.metric}" if self.model else self.metric
+
+    @property
+    def worse_by(self) -> float:
+        """How much worse the new value is: for an error or a score, 0 when better; for a value
+        with no better direction, any change (NaN without two numbers)."""
+        c = self.change
+        if math.isnan(c):
+            return math.nan
+        name = self.metric.rsplit(".", 1)[-1]
+        if name in LOWER_IS_BETTER:
+            return max(c, 0.0)
+        return max(-c, 0.0) if name in HIGHER_IS_BETTER else abs(c)
+
+
+@dataclass
+class SceneDiff:
+    scene: str
+    rows: list[Row] = field(default_factory=list)
+    note: str = ""                      # why a scene is not compared (absent from a run)
+
+    @property
+    def verdict(self) -> str:
+        if self.note:
+            return self.note
+        moved = [r for r in self.rows if r.verdict != "same"]
+        if not moved:
+            return "unchanged"
+        # a scene scored over repeated draws is judged by those scores; its single values (derived
+        # from the same models) are counted beside them. A scene without draws by its values.
+        scored = any(r.how != "single value" for r in self.rows)
+        judged = [r for r in moved if (r.how != "single value") == scored]
+        others = len(moved) - len(judged)
+        signals = sorted((r for r in judged if r.verdict != "noise"),
+                         key=lambda r: -(r.worse_by if not math.isnan(r.worse_by) else -1))
+        tail = f"; {others} other values changed" if others else ""
+        if not judged:
+            return f"scores unchanged{tail}"
+        if not signals:
+            return f"{len(judged)} changes, all within noise{tail}"
+        shown = ", ".join(f"{r.label} {_signed(r.change)} ({r.verdict})" if not math.isnan(r.change)
+                          else f"{r.label} {r.verdict}" for r in signals[:3])
+        more = f" and {len(signals) - 3} more" if len(signals) > 3 else ""
+        return f"{len(signals)} beyond noise: {shown}{more}{tail}"
+
+
+# ----------------------------------------------------------------------------- reading a run
+
+def read_run(rev: str | None, repo: str = ".") -> dict[str, dict | None]:
+    """Each scene's ``metrics.json`` and ``provenance.json`` at ``rev`` (None: the workspace);
+    a scene the run does not have is None."""
+    import dvc.api
+    from dvc.exceptions import DvcException
+    out = {}
+    for scene in SCENES:
+        files = {}
+        for name in ("metrics", "provenance"):
+            path = f"results/{scene}/{name}.json"
+            try:
+                files[name] = json.loads(dvc.api.read(path, repo=repo, rev=rev))
+            except FileNotFoundError:
+                files[name] = None
+            except (DvcException, json.JSONDecodeError) as exc:
+                raise InputError(f"{path} at {rev or 'the workspace'}", str(exc).splitlines()[0]) from None
+        out[scene] = files if files["metrics"] is not None else None
+    return out
+
+
+def draws_identity(provenance: dict | None) -> str | None:
+    """What fixes a scene's draws: its recordings and every stage before the models (their code
+    and parameters). Two runs with the same identity drew the same splits or folds."""
+    if not provenance:
+        return None
+    key = {"sessions": provenance.get("sessions"),
+           "stages": {s: v for s, v in sorted(provenance.get("stages", {}).items()) if s not in MODEL_STAGES}}
+    return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
+
+
+# ----------------------------------------------------------------------------- what a scene scores
+
+def scored_series(scene: str, metrics: dict) -> dict[tuple[str, str], dict]:
+    """``{(model, metric): {"value", "draws", "low", "high"}}`` of the scores over repeated draws."""
+    series = {}
+    if scene in TOOL_SCENES:
+        models = {k: v for k, v in metrics.items() if isinstance(v, dict) and "per_split" in v}
+        models.update({f"baseline {k}": v for k, v in metrics.get("baselines", {}).items() if "per_split" in v})
+        for model, m in models.items():
+            for score in TOOL_SCORES:
+                ov = m["over_splits"][score]
+                series[(model, score)] = {"value": ov["mean"], "draws": m["per_split"][score],
+                                          "low": ov["low"], "high": ov["high"]}
+    elif scene == "volume":
+        for model, draws in metrics.get("r2_folds", {}).items():
+            low, high = metrics.get("r2_ci95", {}).get(model, (math.nan, math.nan))
+            series[(model, "r2")] = {"value": metrics["r2"][model]["mean"], "draws": draws, "low": low, "high": high}
+    return series
+
+
+def single_values(scene: str, metrics: dict) -> dict[str, float | str | bool]:
+    """Every other number, verdict and name of the scene, by its dotted path (lists by index)."""
+    skip = {"per_split", "over_splits", "r2_folds", "r2_ci95"} if scene in TOOL_SCENES or scene == "volume" else set()
+    if scene == "volume":
+        skip.add("r2")
+    out = {}
+
+    def walk(node, path):
+        if node is None:
+            return
+        if isinstance(node, (bool, str)):
+            out[path] = node
+        elif isinstance(node, (int, float)):
+            out[path] = float(node)
+        elif isinstance(node, dict):
+            for k, v in node.items():
+                if k not in skip:
+                    walk(v, f"{path}.{k}" if path else str(k))
+        elif isinstance(node, list):
+            for i, v in enumerate(node):
+                walk(v, f"{path}.{i}")
+    walk(metrics, "")
+    return out
+
+
+# ----------------------------------------------------------------------------- comparing
+
+def _same(a, b) -> bool:
+    return a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
+
+
+def _test_train_ratio(scene: str, run: dict) -> float:
+    """n_test/n_train of one draw, for the corrected resampled t the reports use."""
+    if scene == "volume":
+        folds = (run["provenance"] or {}).get("stages", {}).get("cmd_report_volume", {}).get("params", {}).get("folds")
+        return folds["test_lifts_per_volume"] / folds["train_lifts_per_volume"] if folds else 0.0
+    return float(run["metrics"].get("test_train_ratio", 0.0) or 0.0)
+
+
+def compare_scene(scene: str, old: dict | None, new: dict | None) -> SceneDiff:
+    if old is None or new is None:
+        which = "either run" if old is None and new is None else ("the old run" if old is None else "the new run")
+        return SceneDiff(scene, note=f"not in {which}")
+    out = SceneDiff(scene)
+    paired = draws_identity(old["provenance"]) == draws_identity(new["provenance"]) is not None
+    ratio = _test_train_ratio(scene, new)
+    a, b = scored_series(scene, old["metrics"]), scored_series(scene, new["metrics"])
+    for key in sorted(set(a) | set(b)):
+        model, metric = key
+        if key not in b or key not in a:
+            s = a.get(key) or b.get(key)
+            out.rows.append(Row(scene, model, metric, s["value"] if key in a else None,
+                                s["value"] if key in b else None, "removed" if key not in b else "added"))
+            continue
+        sa, sb = a[key], b[key]
+        if all(_same(x, y) for x, y in zip(sa["draws"], sb["draws"])) and len(sa["draws"]) == len(sb["draws"]):
+            out.rows.append(Row(scene, model, metric, sa["value"], sb["value"], "same"))
+        elif paired and len(sa["draws"]) == len(sb["draws"]) >= 2:
+            d = paired_difference(sb["draws"], sa["draws"], test_train_ratio=ratio)
+            out.rows.append(Row(scene, model, metric, sa["value"], sb["value"],
+                                "signal" if d["excludes_zero"] else "noise", f"paired over {d['n']} draws",
+                                d["low"], d["high"]))
+        else:
+            apart = sb["low"] > sa["high"] or sb["high"] < sa["low"]
+            out.rows.append(Row(scene, model, metric, sa["value"], sb["value"], "signal" if apart else "noise",
+                                "intervals"))
+    va, vb = single_values(scene, old["metrics"]), single_values(scene, new["metrics"])
+    for path in sorted(set(va) | set(vb)):
+        if path in va and path in vb:
+            verdict = "same" if _same(va[path], vb[path]) else "changed"
+        else:
+            verdict = "removed" if path not in vb else "added"
+        out.rows.append(Row(scene, "", path, va.get(path), vb.get(path), verdict, "single value"))
+    return out
+
+
+def diff_runs(old: dict, new: dict, scenes=SCENES) -> list[SceneDiff]:
+    return [compare_scene(s, old.get(s), new.get(s)) for s in scenes]
+
+
+def failures(diffs: list[SceneDiff], tolerances: dict[str, float]) -> list[Row]:
+    """Rows whose metric (its last name: mae, r2, ...) got worse by more than its tolerance. A
+    scene scored over draws is held to its scores (their means), not to single draws' values."""
+    out = []
+    for d in diffs:
+        scored = any(r.how != "single value" for r in d.rows)
+        out += [r for r in d.rows if (r.how != "single value") == scored
+                and r.metric.rsplit(".", 1)[-1] in tolerances and not math.isnan(r.worse_by)
+                and r.worse_by > tolerances[r.metric.rsplit(".", 1)[-1]]]
+    return out
+
+
+# ----------------------------------------------------------------------------- output
+
+def _signed(x: float) -> str:
+    return f"{x:+.4g}"
+
+
+def _num(x) -> str:
+    if x is None or isinstance(x, (bool, str)):
+        return "" if x is None else str(x)
+    return "NaN" if math.isnan(x) else f"{x:.4g}"
+
+
+def markdown(diffs: list[SceneDiff], old_name: str, new_name: str, show_same: bool = False) -> str:
+    lines = [f"## Metrics: {old_name} → {new_name}", ""]
+    lines += [f"- **{d.scene}**: {d.verdict}" for d in diffs]
+    for d in diffs:
+        # a scene scored over draws lists its scores; the single values derived from the same
+        # models (counted in the verdict) only with show_same
+        scored = any(r.how != "single value" for r in d.rows)
+        rows = [r for r in d.rows if show_same or (r.verdict != "same" and not (scored and r.how == "single value"))]
+        if not rows:
+            continue
+        lines += ["", f"### {d.scene}", "", "| model | metric | old | new | change | verdict | judged by |",
+                  "|---|---|---|---|---|---|---|"]
+        for r in rows:
+            judged = r.how + (f", change in [{r.low:.3g}, {r.high:.3g}]" if not math.isnan(r.low) else "")
+            change = _signed(r.change) if not math.isnan(r.change) else ""
+            lines.append(f"| {r.model} | {r.metric} | {_num(r.old)} | {_num(r.new)} | {change} | {r.verdict} | {judged} |")
+    return "\n".join(lines) + "\n"
+
+
+def as_json(diffs: list[SceneDiff]) -> dict:
+    return {d.scene: {"verdict": d.verdict,
+                      "rows": [{"model": r.model, "metric": r.metric, "old": r.old, "new": r.new,
+                                "change": None if math.isnan(r.change) else r.change,
+                                "worse_by": None if math.isnan(r.worse_by) else r.worse_by, "verdict": r.verdict,
+                                "how": r.how} for r in d.rows if r.verdict != "same"]} for d in diffs}
