@@ -426,6 +426,8 @@ META_CASES = {
                                "insertion_mm": 2}), "tool must be a non-empty string"),
     "infinite_number": ('{"trial": "t", "tool": "k", "kind": "normal", "orientation_deg": 1e999, "insertion_mm": 2}',
                         "orientation_deg must be a finite number"),
+    "tool_with_a_space": (json.dumps({"trial": "t", "tool": "Screwdriver 1", "kind": "normal", "orientation_deg": 1,
+                                      "insertion_mm": 2}), r"tool name 'Screwdriver 1' must be lowercase .*'screwdriver_1'"),
 }
 for _name, (_text, _problem) in META_CASES.items():
     @case(f"native_meta_json/{_name}")
@@ -441,10 +443,12 @@ for _name, (_text, _problem) in META_CASES.items():
 
 def _cal(rows: dict[str, str]) -> str:
     body = "".join(f'<UserAxis Name="{k}" values="{v}"/>' for k, v in rows.items())
-    return f'<FTSensor><Calibration>{body}</Calibration></FTSensor>'
+    return f'<FTSensor><Calibration ForceUnits="N" TorqueUnits="N-mm">{body}</Calibration></FTSensor>'
 
 
 _ROW = "1 0 0 0 0 0"
+_GOOD = {"Fx": "10 0.2 0 0 0 0", "Fy": "0 10 0 0 0 0", "Fz": "0 0 14 0 0 0", "Tx": "0 0 0 100 0 0",
+         "Ty": "0 0 0 0 100 0", "Tz": "0 0 0 0 0 100"}
 CAL_CASES = {
     "missing": (None, "missing: the session needs the Nano17 calibration file", None),
     "not_xml": ("this is not xml", "not valid calibration XML", None),
@@ -458,6 +462,13 @@ CAL_CASES = {
                   "must be finite", "UserAxis Fx"),
     "row_twice": (_cal({a: _ROW for a in ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")}).replace(
         "</Calibration>", f'<UserAxis Name="Fz" values="{_ROW}"/></Calibration>'), "given more than once", None),
+    "unknown_force_unit": (_cal(_GOOD).replace('ForceUnits="N"', 'ForceUnits="furlongs"'),
+                           "ForceUnits='furlongs' on <Calibration>: the unit must be one of N, kN, lbf", None),
+    "no_units": (_cal(_GOOD).replace(' ForceUnits="N" TorqueUnits="N-mm"', ""), "no ForceUnits on <Calibration>", None),
+    "six_equal_rows": (_cal({a: "10 0.2 0 0 0 0" for a in _GOOD}), "singular or nearly", None),
+    "one_huge_cell": (_cal({**_GOOD, "Fz": "0 0 1e300 0 0 0"}), "condition number|maps the ADC", None),
+    "huge_row": (_cal({**_GOOD, "Fy": "0 2000 0 0 0 0"}), r"maps the ADC's 5 V to 1e\+04 N, outside 6.25-2.5e\+03 N",
+                 "UserAxis Fy"),
 }
 for _name, (_text, _problem, _record) in CAL_CASES.items():
     @case(f"native_calibration/{_name}")
@@ -631,6 +642,8 @@ TRIALS_CSV_CASES = {
     "trial_listed_twice": ("trial,tool,orientation_deg,insertion_mm\nt0,knife,5,10\nt0,spatula,5,10\n",
                            "trial t0 is listed again", "line 3"),
     "wrong_header": ("name,tool\nt0,knife\n", "header must hold trial,tool,orientation_deg,insertion_mm", "line 1"),
+    "tool_with_a_space": ("trial,tool,orientation_deg,insertion_mm\nt0,paper knife,5,10\n",
+                          r"tool name 'paper knife' must be lowercase letters, digits and _ .*'paper_knife'", "line 2"),
 }
 for _name, (_text, _problem, _record) in TRIALS_CSV_CASES.items():
     @case(f"public_trials_csv/{_name}")

@@ -38,6 +38,16 @@ def test_a_reversed_y_axis_is_named(sim_lifts, smoke_params, tmp_path, method, s
         build_dataset(lifts_of(shard, item["lift"].volume_ml), seg, smoke_params["papillarray_axes"])
 
 
+@pytest.mark.parametrize("method", ["auto", "force"])
+def test_a_reversed_z_axis_is_named(sim_lifts, smoke_params, tmp_path, method):
+    item = sim_lifts[1]
+    shard = reversed_shard(item["shard"], tmp_path / "rev.parquet", [0], axis="gfz")
+    seg = {**smoke_params["segment"], "method": method}
+    with pytest.raises(InputError, match=r"^" + str(shard) + r": the grip force Fz has the wrong sign while the "
+                                         r"container is lifted on sensor 0 \(Fz -[56]\.\d+ N\).*z: '-z'"):
+        build_dataset(lifts_of(shard, item["lift"].volume_ml), seg, smoke_params["papillarray_axes"])
+
+
 def test_the_axis_map_reads_a_reversed_sensor_right(sim_lifts, smoke_params, tmp_path):
     item = sim_lifts[1]
     lifts = lifts_of(item["shard"], item["lift"].volume_ml)

@@ -61,7 +61,7 @@ def test_png_frames_in_the_public_layout_are_read(public, tmp_path):
 
 def test_landscape_frames_are_noted_and_not_mixed_with_portrait_ones(native, public, tmp_path):
     ingest_trial(open_trial(public, "public"), tmp_path / "pub.parquet", SIZE, INGEST)     # 64 x 48
-    qc = build_tool_dataset([tmp_path / "pub.parquet"], "normal", tmp_path / "data", SYNC)
+    qc = build_tool_dataset([tmp_path / "pub.parquet"], "normal", tmp_path / "data", {**SYNC, "normal_sign": -1})
     note = qc_markdown({"kind": "normal", "trials": qc["trials"], "pairs": qc["pairs"], "image_size": SIZE}, "normal")
     assert "Frames recorded at 64x48 (width x height), resized to 32 x 32 px: the aspect ratio is not kept" in note
     ingest_trial(open_trial(native, "native"), tmp_path / "nat.parquet", SIZE, INGEST)     # 240 x 320

@@ -151,7 +151,7 @@ def test_a_low_confidence_trial_can_be_left_out_of_the_dataset_and_named_in_qc(t
     assert bad["clock"]["dropped"].startswith("clock not aligned")
     good = ingest_trial(make_raw(seed=1), tmp_path / "good.parquet", SIZE, ingest)
     assert "dropped" not in good["clock"]
-    sync = {"max_gap_s": 0.2, "pair_rate_hz": 0, "reference": "first", "contact_n": 0.5, "normal_sign": -1}
+    sync = {"max_gap_s": 0.2, "pair_rate_hz": 0, "reference": "first", "contact_n": 0.5, "normal_sign": 1}   # this rig reads +Fz
     out = build_tool_dataset([tmp_path / "bad.parquet", tmp_path / "good.parquet"], good["kind"], tmp_path / "d", sync)
     assert [t["trial"] for t in out["trials"]] == [good["trial"]]
     qc = json.loads((tmp_path / "d" / "qc.json").read_text())

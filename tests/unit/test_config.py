@@ -61,6 +61,7 @@ def test_deep_merge_does_not_touch_its_inputs():
 BAD = [
     ("wrong_type_top", {"seed": "abc"}, r"invalid parameter at 'seed': 'abc' is not of type 'integer'"),
     ("negative_seed", {"seed": -1}, r"at 'seed'"),
+    ("huge_seed", {"seed": 2**70}, r"at 'seed': 1180591620717411303424 is greater than the maximum of 4294967295"),
     ("wrong_type_nested", {"folds": {"n_folds": 2.5}}, r"at 'folds.n_folds'"),
     ("wrong_enum_nested", {"simulate_volume": {"rate_hz": 123}}, r"at 'simulate_volume.rate_hz': 123 is not one of"),
     ("list_expected", {"simulate_volume": {"volumes_ml": 100}}, r"at 'simulate_volume.volumes_ml'"),
@@ -250,3 +251,12 @@ def test_the_cli_hands_a_stage_its_declared_parameters_only(tmp_path):
     p = stage_params(args, "scale")
     with pytest.raises(ConfigError, match="reads parameter 'seed'"):
         p["seed"]
+
+
+def test_nested_config_text_takes_the_type_params_yaml_has(raw_params):
+    from tactilepipe.core.config import typed_like
+    # what Snakemake makes of --config folds='{"n_folds": 2}' tool_train='{"variants": "[full]"}'
+    given = {"folds": {"n_folds": "2"}, "tool_train": {"variants": "[full]", "kernels": "native"}, "seed": 7}
+    typed = typed_like(given, raw_params)
+    assert typed == {"folds": {"n_folds": 2}, "tool_train": {"variants": ["full"], "kernels": "native"}, "seed": 7}
+    assert typed_like({"folds": {"n_folds": "two"}}, raw_params) == {"folds": {"n_folds": "two"}}   # left to validation

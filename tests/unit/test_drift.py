@@ -167,10 +167,20 @@ def test_misnamed_file_raises_input_error_naming_it(tmp_path, name):
 def test_unloaded_recording_with_a_weight_on_it_is_an_input_error(tmp_path):
     t = np.arange(500) / 100.0
     fz = np.where((t > 1) & (t < 4), 4.9, 0.0)
-    path = tmp_path / "unloaded_t05.parquet"
-    pd.DataFrame({"stamp_ns": (t * 1e9).astype(np.int64), "sensor": 0, "gfz": fz}).to_parquet(path)
+    paths = [tmp_path / f"unloaded_t{m:02d}.parquet" for m in (0, 5, 10)]
+    for path in paths:
+        pd.DataFrame({"stamp_ns": (t * 1e9).astype(np.int64), "sensor": 0,
+                      "gfz": fz if "t05" in path.name else 0 * fz}).to_parquet(path)
     with pytest.raises(InputError, match="unloaded_t05.parquet.*something was on the sensor"):
-        analyse.drift_series([path], load_g=500)
+        analyse.drift_series(paths, load_g=500)
+
+
+def test_a_run_with_too_few_recordings_is_refused_stating_the_minimum(tmp_path):
+    paths = [tmp_path / name for name in ("unloaded_t00.parquet", "loaded_t00.parquet", "unloaded_t05.parquet",
+                                          "unloaded_t10.parquet")]
+    with pytest.raises(InputError, match=r"run loaded has 1 recording\(s\) \(t = 0 min\): a drift curve needs at "
+                                         r"least 3 per run"):
+        analyse.drift_series(paths, load_g=500)               # counted from the names, before any file is read
 
 
 # --- end to end -------------------------------------------------------------------------------

@@ -164,3 +164,52 @@ def test_bad_trials_raise_clear_errors(session, tmp_path, break_it, needle):
     assert "lab-1" in str(err.value)                    # names the file
     assert not (tmp_path / "out.parquet").exists()
     assert not list(tmp_path.glob(".out.parquet*"))
+
+
+def test_a_calibration_in_pounds_force_is_converted_to_newtons(tmp_path):
+    from tactilepipe.tool.formats.native_layout import read_calibration, write_calibration
+    write_calibration(tmp_path / "n.cal", CAL)
+    text = (tmp_path / "n.cal").read_text()
+    lbf = CAL.copy()
+    lbf[:3] /= 4.4482216152605              # force rows in lbf per volt
+    lbf[3:] /= 112.98482933                 # torque rows in lbf-in per volt
+    write_calibration(tmp_path / "lbf.cal", lbf)
+    (tmp_path / "lbf.cal").write_text((tmp_path / "lbf.cal").read_text().replace(
+        'ForceUnits="N" TorqueUnits="N-mm"', 'ForceUnits="lbf" TorqueUnits="lbf-in"'))
+    assert 'ForceUnits="N"' in text
+    np.testing.assert_allclose(read_calibration(tmp_path / "lbf.cal"), read_calibration(tmp_path / "n.cal"), rtol=1e-7)
+
+
+def test_a_force_log_that_starts_mid_press_is_left_out_and_named(smoke_params, tmp_path):
+    from support.tool_sim import write_session
+    from tactilepipe.tool.sim.plan import session_plan
+    session = tmp_path / "lab-2"
+    names = [t.name for t in session_plan(smoke_params) if t.kind == "normal"][:2]
+    write_session(session, smoke_params, trials=names)
+    trial = session / names[0]
+    raw = read_native_trial(trial)
+    sync = {**smoke_params["tool_sync"]}
+    normal = sync["normal_sign"] * raw.force_n[:, 2]
+    lines = (trial / "force.log").read_text().splitlines()
+    start = int(np.argmax(normal > 0.5 * normal.max()))      # the log starts half-way up the press
+    (trial / "force.log").write_text("\n".join([lines[0], *lines[1 + start:]]) + "\n")
+    ingest = smoke_params["tool_ingest"]
+    for name in names:
+        ingest_trial(read_native_trial(session / name), tmp_path / f"{name}.parquet", image_size=32, ingest=ingest)
+    shards = [tmp_path / f"{name}.parquet" for name in names]
+    build_tool_dataset(shards, "normal", tmp_path / "data", sync)
+    qc = json.loads((tmp_path / "data" / "qc.json").read_text())
+    assert [t["trial"] for t in qc["trials"]] == [f"lab-2/{names[1]}"]
+    (left,) = qc["dropped_trials"]
+    assert left["trial"] == f"lab-2/{names[0]}" and left["reason"].startswith("loaded start: the normal force reads -")
+    with pytest.raises(InputError, match=f"no 'normal' trials among 1 shards .*lab-2/{names[0]}: loaded start"):
+        build_tool_dataset(shards[:1], "normal", tmp_path / "data2", sync)
+
+
+def test_a_normal_force_negative_throughout_points_at_the_sign_not_the_zero():
+    from tactilepipe.tool.data.dataset import bad_zero
+    press = np.zeros((100, 3))
+    press[:, 2] = 10 * np.sin(np.linspace(0, np.pi, 100))          # one press of 10 N on +Fz
+    assert bad_zero(press, 1) is None
+    assert "tool_sync.normal_sign has the wrong sign" in bad_zero(press, -1)
+    assert bad_zero(press - [0, 0, 4], 1).startswith("loaded start: the normal force reads -3.37 N (5th percentile")

@@ -468,3 +468,23 @@ def test_sliding_strokes_go_back_and_forth_along_the_axis(default_params):
         assert (off_axis < 4 * spread).all(), spec.name
         assert ((deltas[1:] * deltas[:-1]).sum(axis=1) < 0).all(), spec.name   # each stroke turns back
     assert min(counts) >= 1 and np.mean(counts) > 1.75               # mostly out and back in one grasp
+
+
+def test_a_force_far_beyond_the_sensor_range_is_dropped_and_counted_at_ingest(tmp_path, smoke_params):
+    from tactilepipe.tool.data.ingest import BEYOND_RANGE, ingest_trial
+    from tactilepipe.tool.formats.trials import open_trial
+    n = 12
+    force = np.concatenate([[0.0], np.linspace(1, 12, n - 1)])
+    tdir = public_formats.write_public_trial(tmp_path, "t", _smooth_frames(n, 4), _smooth_frames(n, 5), force, "normal")
+    (tdir / "force" / "force_data_0005.txt").write_text("5,-1000000\n")     # a garbled count: 30,229 N
+    (tmp_path / "trials.csv").write_text("trial,tool,orientation_deg,insertion_mm\nt,knife,5,10\n")
+    raw = open_trial(tdir, "public")
+    assert np.abs(raw.force_n).max() > 30000                    # what the public conversion makes of it
+    info = ingest_trial(raw, tmp_path / "s.parquet", 32, smoke_params["tool_ingest"])
+    assert info["drops"][BEYOND_RANGE] == 1 and info["force_samples"] == len(raw.force_n) - 1
+    import pandas as pd
+    assert pd.read_parquet(tmp_path / "s.parquet")["fz"].abs().max() < 25
+    for i in range(n):                                          # every sample garbled: refused, naming the trial
+        (tdir / "force" / f"force_data_{i:04d}.txt").write_text(f"{i},-1000000\n")
+    with pytest.raises(InputError, match=r"every force sample lies beyond twice the Nano17's rated range"):
+        ingest_trial(open_trial(tdir, "public"), tmp_path / "s2.parquet", 32, smoke_params["tool_ingest"])

@@ -37,6 +37,25 @@ def deep_merge(base: dict, overlay: dict) -> dict:
     return out
 
 
+def typed_like(values: dict, reference: dict) -> dict:
+    """``values`` with each text leaf read as YAML where ``reference`` (params.yaml) holds a value
+    that is not text at the same place. Snakemake parses a ``--config`` value's top level but keeps
+    its nested scalars as text (``folds='{"n_folds": 2}'`` arrives as {"n_folds": "2"})."""
+    out = {}
+    for key, value in values.items():
+        ref = reference.get(key) if isinstance(reference, dict) else None
+        if isinstance(value, dict):
+            out[key] = typed_like(value, ref if isinstance(ref, dict) else {})
+        elif isinstance(value, str) and ref is not None and not isinstance(ref, str):
+            try:
+                out[key] = yaml.safe_load(value)
+            except yaml.YAMLError:
+                out[key] = value               # left as text: validation names the key and the type
+        else:
+            out[key] = value
+    return out
+
+
 def _format_error(err: jsonschema.ValidationError, source: str) -> str:
     where = ".".join(str(p) for p in err.absolute_path) or "(top level)"
     return f"{source}: invalid parameter at '{where}': {err.message}"

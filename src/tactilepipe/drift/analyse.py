@@ -120,6 +120,9 @@ def recording_reading(path: str | Path, run: str, reference_n: float, sensor: in
     return reading(t, fz, run, reference_n, min_step_n, source=path)
 
 
+MIN_RECORDINGS_PER_RUN = 3
+
+
 def drift_series(shard_paths, load_g: float, sensor: int = 0, min_step_n: float = 1.0) -> pd.DataFrame:
     """One row per recording: run, t_min, unloaded baseline, loaded reading, deviation, drift.
 
@@ -135,6 +138,14 @@ def drift_series(shard_paths, load_g: float, sensor: int = 0, min_step_n: float 
             raise InputError(path, f"second recording of run {run} at t = {t_min} min "
                                    f"(also {seen[(run, t_min)]})")
         seen[(run, t_min)] = path
+    for run in sorted({run for _, run, _ in named}):
+        times = sorted(t for _, r, t in named if r == run)
+        if len(times) < MIN_RECORDINGS_PER_RUN:
+            first = next(path for path, r, _ in named if r == run)
+            raise InputError(first.parent, f"run {run} has {len(times)} recording(s) (t = "
+                                           f"{', '.join(map(str, times))} min): a drift curve needs at least "
+                                           f"{MIN_RECORDINGS_PER_RUN} per run, taken minutes apart (a line fits two; "
+                                           f"the third shows whether it holds)")
     reference_n = load_g / 1000.0 * G
     rows = [{"file": path.name, "run": run, "t_min": t_min,
              **recording_reading(path, run, reference_n, sensor, min_step_n)} for path, run, t_min in named]

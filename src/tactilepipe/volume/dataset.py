@@ -8,8 +8,9 @@ above the noise (nothing grasped) is refused, never kept with its volume label.
 Axes (docs/robustness.md): on both sensors +z points into the pad (grip: Fz > 0) and +y down
 along the pad (the container's weight: Fy > 0 off the table); +x completes a right-handed frame,
 so it is mirrored between the two facing sensors. params.yaml `papillarray_axes` maps a sensor
-mounted or configured otherwise onto these; a lift whose Fy is clearly negative off the table
-on a sensor is refused naming it (a reversed axis), never kept with negative loads.
+mounted or configured otherwise onto these; a lift whose Fy is clearly negative off the table,
+or whose grip Fz is, on a sensor is refused naming it (a reversed axis), never kept with negative
+loads.
 """
 
 from __future__ import annotations
@@ -135,6 +136,7 @@ def off_table_segment(rec: dict, seg: dict, path: str | Path = "?") -> tuple[int
                                    f"above rest over the {duration:.2f}-s off-table phase by the pose method, "
                                    f"need 10 x the rest noise {noise:.3f} N): nothing grasped?")
     _check_fy_sign(rec, start, stop, width, noise, path)
+    _check_fz_sign(rec, start, stop, noise, path)
     return start, stop, used
 
 
@@ -166,6 +168,24 @@ def _check_fy_sign(rec: dict, start: int, stop: int, width: int, noise: float, p
         raise InputError(path, f"Fy has the wrong sign while the container is lifted on {' and '.join(wrong)}: "
                                f"its weight must read Fy > 0 (docs/robustness.md); a reversed y axis? Map it in "
                                f"params.yaml papillarray_axes (e.g. y: '-y')")
+
+
+def _check_fz_sign(rec: dict, start: int, stop: int, noise: float, path) -> None:
+    """InputError naming each sensor whose grip force Fz is clearly negative off the table: the
+    pads squeeze the container, which reads Fz > 0 on both (a grip that holds the container up
+    cannot be a pull). Absolute, not above rest: the grip may already be closed at rest."""
+    wrong = []
+    for s in (0, 1):
+        fz = rec[f"fz{s}"]
+        if not np.isfinite(fz).any():
+            continue
+        level = float(np.median(fz[start:stop]))
+        if level < -10 * noise:
+            wrong.append(f"sensor {s} (Fz {level:+.3f} N)")
+    if wrong:
+        raise InputError(path, f"the grip force Fz has the wrong sign while the container is lifted on "
+                               f"{' and '.join(wrong)}: a grip must read Fz > 0 (docs/robustness.md); a reversed "
+                               f"z axis? Map it in params.yaml papillarray_axes (e.g. z: '-z')")
 
 
 def build_dataset(lifts: pd.DataFrame, seg: dict, axes: dict) -> tuple[pd.DataFrame, pd.DataFrame]:

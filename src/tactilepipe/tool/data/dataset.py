@@ -11,7 +11,13 @@ into memory-mappable arrays:
                       (sqrt(fx² + fy²))
     frames.npy        (pairs, 2, S, S) uint8: current frame of each finger
     references.npy    (trials, 2, S, S) uint8: reference frame of each finger
-    qc.json           per trial: frames, pairs, drops by reason, clock offset found, force range
+    qc.json           per trial: frames, pairs, drops by reason, clock offset found, force range;
+                      the trials left out, each with its reason
+
+A trial whose normal force (normal_sign * fz) dips clearly below zero had its zero-force offset
+taken while loaded (the log started mid-press): every label of it is shifted by that load, so it
+is left out and named (``loaded_start``). A press can only push: the simulated and real trials
+met stay above -0.12 N, the threshold is -1 N on the 5th percentile.
 """
 
 from __future__ import annotations
@@ -29,6 +35,8 @@ from tactilepipe.core.errors import InputError
 from tactilepipe.tool.data.ingest import read_shard_info
 from tactilepipe.tool.formats.raw import SENSORS
 from tactilepipe.tool.data.sync import interpolate_at, pair_frames
+
+LOADED_START_N = 1.0             # N: a normal force this far below zero (5th percentile) means a loaded zero
 
 
 def _decode(png: bytes, where: str) -> np.ndarray:
@@ -90,6 +98,22 @@ def load_trial(shard: Path, info: dict, sync: dict) -> dict:
             "png": [by_sensor[SENSORS[0]]["png"].to_numpy()[il[ok]], by_sensor[SENSORS[1]]["png"].to_numpy()[ir[ok]]]}
 
 
+def bad_zero(force: np.ndarray, normal_sign: float) -> str | None:
+    """Why a trial's normal force cannot be right, or None (see the module docstring): it dips
+    well below zero after a press (the zero was taken under load), or never rises above zero at
+    all (the sign is wrong for this sensor's mounting)."""
+    if not len(force):
+        return None
+    low, high = np.percentile(normal_sign * force[:, 2], [5, 95])
+    if low >= -LOADED_START_N:
+        return None
+    if high < LOADED_START_N:
+        return (f"the normal force is negative throughout (5th-95th percentile {low:.2f} to {high:.2f} N): "
+                f"tool_sync.normal_sign has the wrong sign for this sensor?")
+    return (f"loaded start: the normal force reads {low:.2f} N (5th percentile, below -{LOADED_START_N:g} N), "
+            f"so the zero-force offset taken at the start of force.log was under load")
+
+
 def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict) -> dict:
     trials, dropped = [], []
     for shard in shards:
@@ -100,17 +124,24 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
             dropped.append({"trial": info["trial"], "source": info["source"], "reason": info["clock"]["dropped"]})
             continue
         trials.append(load_trial(Path(shard), info, sync))
-    if not trials:
-        raise InputError(out_dir, f"no '{kind}' trials among {len(shards)} shards")
-    size = trials[0]["info"]["image_size"]
     # frames of every trial are squashed to a square: portrait and landscape trials would put the
     # same contact at different places, so a dataset keeps one orientation
     shapes = {t["info"]["source"]: orientation(t["info"]) for t in trials}
-    first = next(iter(shapes.values()))
     for source, o in shapes.items():
-        if o != first:
-            raise InputError(source, f"frames are {o}, those of {trials[0]['info']['source']} are {first}: "
-                                     f"one dataset cannot mix frame orientations (rotate them to one)")
+        if o != next(iter(shapes.values())):
+            raise InputError(source, f"frames are {o}, those of {trials[0]['info']['source']} are "
+                                     f"{next(iter(shapes.values()))}: one dataset cannot mix frame orientations "
+                                     f"(rotate them to one)")
+    for trial in list(trials):
+        wrong = bad_zero(trial["force"], sync["normal_sign"])
+        if wrong:
+            dropped.append({"trial": trial["info"]["trial"], "source": trial["info"]["source"], "reason": wrong})
+            trials.remove(trial)
+    if not trials:
+        left_out = "; ".join(f"{d['trial']}: {d['reason']}" for d in dropped)
+        raise InputError(out_dir, f"no '{kind}' trials among {len(shards)} shards"
+                                  + (f" (left out: {left_out})" if left_out else ""))
+    size = trials[0]["info"]["image_size"]
     n = sum(len(t["t_ns"]) for t in trials)
     rows, qc = [], []
     out_dir.mkdir(parents=True, exist_ok=True)

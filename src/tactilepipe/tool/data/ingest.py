@@ -20,6 +20,7 @@ import pyarrow.parquet as pq
 
 from tactilepipe.core.atomic import atomic_path
 from tactilepipe.core.errors import InputError
+from tactilepipe.tool.formats.native_layout import RATED_RANGE
 from tactilepipe.tool.formats.raw import RawTrial
 from tactilepipe.tool.data.clock_sync import change_signal, fit_offset, frozen_frames, frozen_runs, judge
 
@@ -56,6 +57,11 @@ def check_exposure(gray: np.ndarray, where: str, name: str) -> None:
 # Frames bit-identical over this many in a row: the camera re-delivered a stale buffer (a real
 # sensor's noise never repeats an exposure). Harmless at rest, wrong labels while the force moves.
 FROZEN_RUN = 3
+# A force sample beyond twice the Nano17's rated range on an axis (±50, ±50, ±70 N; the study's
+# presses stay under about 25 N) is no reading of this rig: a garbled value, another unit. It is
+# left out of the force rows and counted, never turned into a label.
+PLAUSIBLE_FORCE_N = 2.0 * RATED_RANGE[:3]
+BEYOND_RANGE = "force beyond twice the Nano17's rated range"
 
 
 def _decode_sensor(frames, size: int, name: str) -> tuple[list[bytes], np.ndarray, list[int]]:
@@ -169,6 +175,16 @@ def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, ingest: dict
     if not np.isfinite(force).all():
         bad = int(np.argmax(~np.isfinite(force).all(axis=1)))
         raise InputError(raw.source, "force is NaN or inf", f"force sample {bad}")
+    drops = dict(raw.drops)
+    beyond = (np.abs(force) > PLAUSIBLE_FORCE_N).any(axis=1)
+    if beyond.any():
+        drops[BEYOND_RANGE] = int(beyond.sum())
+        force_ns, force = force_ns[~beyond], force[~beyond]
+        if len(force) == 0:
+            worst = float(np.abs(np.asarray(raw.force_n, np.float64)).max())
+            raise InputError(raw.source, f"every force sample lies beyond twice the Nano17's rated range "
+                                         f"(±{PLAUSIBLE_FORCE_N[0]:g}, ±{PLAUSIBLE_FORCE_N[1]:g}, "
+                                         f"±{PLAUSIBLE_FORCE_N[2]:g} N; up to {worst:.4g} N here)")
     clock = dict(raw.clock)
     grays = {name: d[1] for name, d in decoded.items()}
     if clock.get("refine"):
@@ -199,7 +215,7 @@ def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, ingest: dict
     })
     info = {"trial": raw.trial, "tool": raw.tool, "kind": raw.kind, "orientation_deg": raw.orientation_deg,
             "insertion_mm": raw.insertion_mm, "image_size": image_size, "clock": clock,
-            "drops": raw.drops, "frames": {n: len(f) for n, f in raw.frames.items()}, "force_samples": n_force,
+            "drops": drops, "frames": {n: len(f) for n, f in raw.frames.items()}, "force_samples": n_force,
             "frame_size": {n: d[2] for n, d in decoded.items()},   # [w, h] before the square resize
             "source": raw.source}
     table = table.replace_schema_metadata({b"tactilepipe": json.dumps(info).encode()})

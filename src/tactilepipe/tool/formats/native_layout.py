@@ -41,9 +41,21 @@ DIGIT_SIZES = ((320, 240), (240, 320), (640, 480), (480, 640))
 ADC_COUNTS, ADC_VOLTS = 1023, 5.0
 ADC_ZERO_V = 2.5
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+# ATI's unit names in a .cal file, as factors to N and N·mm (the units the pipeline works in)
+FORCE_UNITS = {"N": 1.0, "kN": 1000.0, "lbf": 4.4482216152605, "klbf": 4448.2216152605, "Klbf": 4448.2216152605,
+               "g": 0.00980665, "kg": 9.80665, "kgf": 9.80665}
+TORQUE_UNITS = {"N-mm": 1.0, "N-m": 1000.0, "kN-m": 1e6, "lbf-in": 112.98482933, "lbf-ft": 1355.8179483,
+                "klbf-in": 112984.82933, "Klbf-in": 112984.82933, "kgf-cm": 98.0665, "g-cm": 0.0980665}
+# The Nano17 SI-25-0.25's rated ranges (ATI): Fx, Fy ±25 N, Fz ±35 N, torques ±250 N·mm. A matrix
+# must map the ADC's whole span (5 V) to forces between a quarter and a hundred times these:
+# beyond, a cell is out by orders of magnitude (a typo, another unit, another sensor's file).
+RATED_RANGE = np.array([25.0, 25.0, 35.0, 250.0, 250.0, 250.0])
+SPAN_FACTORS = (0.25, 100.0)
+MAX_CONDITION = 1e4                  # the simulated sessions' matrices: ~11
 FRAME_NAME = "frame_{:06d}.png"
 SERIAL_HEADER = re.compile(r"^#\s*start_host_ns=([0-9]+)\s*$")
 _UINT = re.compile(r"^[0-9]+$")
+TOOL_NAME = re.compile(r"[a-z0-9_]+")
 _INT = re.compile(r"^-?[0-9]+$")
 
 
@@ -95,11 +107,21 @@ class TrialMeta:
         for key in ("trial", "tool"):
             if not isinstance(raw[key], str) or not raw[key]:
                 raise InputError(where, f"{key} must be a non-empty string, got {raw[key]!r}")
+        check_tool_name(raw["tool"], where)
         for key in ("orientation_deg", "insertion_mm", "camera_fps", "serial_hz"):
             value = raw.get(key, 0.0)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise InputError(where, f"{key} must be a finite number, got {value!r}")
         return cls(**raw)
+
+
+def check_tool_name(tool: str, where, record: str | None = None) -> None:
+    """A tool's name becomes part of file and run names (results/<scene>/models/full_loto_<tool>):
+    lowercase letters, digits and _ only, refused here rather than as a missing file later."""
+    if not TOOL_NAME.fullmatch(tool):
+        suggestion = re.sub(r"[^a-z0-9_]+", "_", tool.strip().lower()).strip("_") or "tool_1"
+        raise InputError(where, f"tool name {tool!r} must be lowercase letters, digits and _ (it names the "
+                                f"leave-one-tool-out runs and their files), e.g. {suggestion!r}", record)
 
 
 def read_frame_index(sensor_dir: str | Path) -> np.ndarray:
@@ -171,7 +193,38 @@ def read_calibration(path: str | Path) -> np.ndarray:
     if not np.isfinite(matrix).all():
         a = AXES[int(np.argmax(~np.isfinite(matrix).all(axis=1)))]
         raise InputError(path, "calibration values must be finite numbers", f"UserAxis {a}")
+    matrix = matrix * _unit_factors(path, root)[:, None]
+    _check_matrix(path, matrix)
     return matrix
+
+
+def _unit_factors(path: Path, root) -> np.ndarray:
+    """Per row, the factor from the file's units to N (forces) and N·mm (torques)."""
+    cal = root if root.tag == "Calibration" else root.find(".//Calibration")
+    units = {key: (cal.get(key) if cal is not None else None) for key in ("ForceUnits", "TorqueUnits")}
+    for key, table in (("ForceUnits", FORCE_UNITS), ("TorqueUnits", TORQUE_UNITS)):
+        if units[key] not in table:
+            found = "no " + key if units[key] is None else f"{key}={units[key]!r}"
+            raise InputError(path, f"{found} on <Calibration>: the unit must be one of {', '.join(table)}")
+    return np.array([FORCE_UNITS[units["ForceUnits"]]] * 3 + [TORQUE_UNITS[units["TorqueUnits"]]] * 3)
+
+
+def _check_matrix(path: Path, matrix: np.ndarray) -> None:
+    """Refuse a matrix no Nano17 has: singular or nearly (a row copied into another), or one whose
+    rows map the ADC's span to forces far outside the sensor's rated range."""
+    singular = np.linalg.svd(matrix, compute_uv=False)
+    condition = singular[0] / singular[-1] if singular[-1] > 0 else math.inf
+    if not condition <= MAX_CONDITION:
+        raise InputError(path, f"the 6x6 matrix is singular or nearly (condition number {condition:.3g}, at most "
+                               f"{MAX_CONDITION:.0e}): the six gauges cannot be told apart")
+    span = np.abs(matrix).sum(axis=1) * ADC_VOLTS
+    low, high = SPAN_FACTORS[0] * RATED_RANGE, SPAN_FACTORS[1] * RATED_RANGE
+    for axis, value, lo, hi in zip(AXES, span, low, high):
+        if not lo <= value <= hi:
+            unit = "N" if axis.startswith("F") else "N·mm"
+            raise InputError(path, f"the row maps the ADC's {ADC_VOLTS:g} V to {value:.3g} {unit}, outside "
+                                   f"{lo:.3g}-{hi:.3g} {unit} (the Nano17's rated ±{RATED_RANGE[AXES.index(axis)]:g} "
+                                   f"{unit} times {SPAN_FACTORS[0]:g}-{SPAN_FACTORS[1]:g})", f"UserAxis {axis}")
 
 
 def counts_to_volts(counts: np.ndarray) -> np.ndarray:

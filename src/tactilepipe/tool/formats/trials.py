@@ -19,6 +19,7 @@ import numpy as np
 
 from tactilepipe.core.csvtext import read_text_table
 from tactilepipe.core.errors import InputError
+from tactilepipe.tool.formats.native_layout import check_tool_name
 from tactilepipe.tool.formats.raw import RawTrial, SensorFrames
 
 PUBLIC_KINDS = {"data_normal": "normal", "data_shear": "shear"}
@@ -89,6 +90,7 @@ def read_trials_csv(session_dir: str | Path) -> dict[str, dict]:
         listed.add(values["trial"])
         if not all(values.values()):
             continue                  # a template row not filled in yet: the trial lacks a tool (or pose)
+        check_tool_name(values["tool"], path, f"line {line}")
         try:
             meta = {"tool": values["tool"], "orientation_deg": float(values["orientation_deg"]),
                     "insertion_mm": float(values["insertion_mm"])}
