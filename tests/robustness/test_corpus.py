@@ -34,7 +34,7 @@ from tactilepipe.tool.data.dataset import build_tool_dataset
 from tactilepipe.tool.formats.trials import open_trial
 from tactilepipe.tool.data.ingest import ingest_trial, read_shard_info
 from tactilepipe.tool.formats.native_layout import FRAME_H, FRAME_W
-from tactilepipe.drift.analyse import recording_reading
+from tactilepipe.drift.recordings import recording_reading
 from tactilepipe.volume.dataset import read_shard
 from tactilepipe.volume.labels import read_session_labels
 

@@ -304,13 +304,13 @@ def test_pose_segmentation_names_the_missing_load(smoke_params, tmp_path):
 
 
 def test_zero_force_drift_recordings(smoke_params):
-    from tactilepipe.drift import analyse
+    from tactilepipe.drift import recordings
     t = np.arange(500) / 100.0
     zero = np.zeros_like(t)
-    row = analyse.reading(t, zero, "unloaded", 0.0)
+    row = recordings.reading(t, zero, "unloaded", 0.0)
     assert row["deviation_n"] == 0.0 and row["n_unloaded"] == len(t)
     with pytest.raises(InputError, match="no weight was placed"):
-        analyse.reading(t, zero, "loaded", 4.905, source="loaded_t05.parquet")
+        recordings.reading(t, zero, "loaded", 4.905, source="loaded_t05.parquet")
 
 
 # ================================ tool rig: ADC rails and gel depth ==============================

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from tactilepipe.core.config import load_params
-from tactilepipe.drift import analyse, simulate
+from tactilepipe.drift import analyse, recordings, simulate
 from tactilepipe.core.errors import InputError
 from tactilepipe.papillarray.shards import ingest_bag
 
@@ -60,7 +60,7 @@ def test_same_seed_gives_byte_identical_bags(tmp_path, smoke_params):
 def _measured_reading(rec: dict) -> tuple[float, float]:
     """(unloaded-part mean, loaded-part mean) of global Fz, parts found by the analysis."""
     fz = rec["force"][..., 2].astype(float).sum(axis=1)
-    row = analyse.reading(rec["t"], fz, rec["run"], reference_n=0.0)
+    row = recordings.reading(rec["t"], fz, rec["run"], reference_n=0.0)
     return row["fz_unloaded_mean_n"], row["fz_loaded_mean_n"]
 
 
@@ -160,7 +160,7 @@ def test_cross_run_r2_scores_one_run_with_the_other_runs_fit():
 def test_misnamed_file_raises_input_error_naming_it(tmp_path, name):
     good = tmp_path / "unloaded_t00.parquet"
     with pytest.raises(InputError) as err:
-        analyse.drift_series([good, tmp_path / name], load_g=500)   # names are checked before any file is read
+        recordings.drift_series([good, tmp_path / name], load_g=500)   # names are checked before any file is read
     assert name in str(err.value)
 
 
@@ -172,7 +172,7 @@ def test_unloaded_recording_with_a_weight_on_it_is_an_input_error(tmp_path):
         pd.DataFrame({"stamp_ns": (t * 1e9).astype(np.int64), "sensor": 0,
                       "gfz": fz if "t05" in path.name else 0 * fz}).to_parquet(path)
     with pytest.raises(InputError, match="unloaded_t05.parquet.*something was on the sensor"):
-        analyse.drift_series(paths, load_g=500)
+        recordings.drift_series(paths, load_g=500)
 
 
 def test_a_run_with_too_few_recordings_is_refused_stating_the_minimum(tmp_path):
@@ -180,7 +180,7 @@ def test_a_run_with_too_few_recordings_is_refused_stating_the_minimum(tmp_path):
                                           "unloaded_t10.parquet")]
     with pytest.raises(InputError, match=r"run loaded has 1 recording\(s\) \(t = 0 min\): a drift curve needs at "
                                          r"least 3 per run"):
-        analyse.drift_series(paths, load_g=500)               # counted from the names, before any file is read
+        recordings.drift_series(paths, load_g=500)               # counted from the names, before any file is read
 
 
 # --- end to end -------------------------------------------------------------------------------
@@ -244,3 +244,23 @@ def test_bad_session_meta_is_an_input_error_naming_the_file(tmp_path, text, prob
         path.write_text(text)
     with pytest.raises(InputError, match=f"session.json.*{problem}"):
         read_session_meta(path)
+
+
+def test_a_recording_clipped_at_the_sensor_limit_is_refused(tmp_path):
+    t = np.arange(800) / 100.0
+    rng = np.random.default_rng(3)
+    loaded = (t > 2) & (t < 6)
+    frame = {"stamp_ns": (t * 1e9).astype(np.int64), "sensor": 0}
+    for i in range(9):
+        frame[f"fz{i}"] = rng.normal(0, 0.015, len(t)) + np.where(loaded, 0.6, 0.0)
+    frame["fz4"] = np.minimum(frame["fz4"] + np.where(loaded, 9.0, 0.0), 8.0)       # the centre pillar at its limit
+    frame["gfz"] = sum(frame[f"fz{i}"] for i in range(9))
+    path = tmp_path / "loaded_t05.parquet"
+    pd.DataFrame(frame).to_parquet(path)
+    with pytest.raises(InputError, match=r"loaded_t05.parquet: pillar 4 of sensor 0 reads exactly 8.000 N in Z for "
+                                         r"\d+ samples in a row: clipped at the sensor's measuring range"):
+        recordings.recording_reading(path, "loaded", 4.9)
+    frame["fz4"] = frame["fz4"] - np.where(loaded, 1.0, 0.0) * rng.uniform(0.1, 0.2, len(t))   # below the limit
+    frame["gfz"] = sum(frame[f"fz{i}"] for i in range(9))
+    pd.DataFrame(frame).to_parquet(path)
+    assert recordings.recording_reading(path, "loaded", 4.9)["n_loaded"] > 200

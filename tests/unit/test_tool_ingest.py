@@ -213,3 +213,19 @@ def test_a_normal_force_negative_throughout_points_at_the_sign_not_the_zero():
     assert bad_zero(press, 1) is None
     assert "tool_sync.normal_sign has the wrong sign" in bad_zero(press, -1)
     assert bad_zero(press - [0, 0, 4], 1).startswith("loaded start: the normal force reads -3.37 N (5th percentile")
+
+
+@pytest.mark.parametrize("stamp, problem", [
+    (lambda ns: ns + 10_000_000_000, r"the cameras are not on one clock: digit_left records .* digit_right .*"
+                                     r"overlap by 0.000 s"),
+    (lambda ns: ns // 1_000_000, r"digit_right: frames 3.3e-08 s apart \(median\): host_ns in another unit")])
+def test_a_camera_on_another_clock_is_refused_at_ingest(session, tmp_path, stamp, problem):
+    trial = tmp_path / "lab-1" / "clock"
+    shutil.copytree(session / "t00", trial)
+    shutil.copy(session / "nano17.cal", tmp_path / "lab-1")
+    index = trial / "digit_right" / "frames.csv"
+    lines = index.read_text().splitlines()
+    index.write_text("\n".join([lines[0]] + [f"{i},{stamp(int(ns))}" for i, ns in
+                                             (line.split(",") for line in lines[1:])]) + "\n")
+    with pytest.raises(InputError, match=problem):
+        ingest_trial(read_native_trial(trial), tmp_path / "s.parquet", image_size=32, ingest=INGEST)

@@ -488,3 +488,16 @@ def test_a_force_far_beyond_the_sensor_range_is_dropped_and_counted_at_ingest(tm
         (tdir / "force" / f"force_data_{i:04d}.txt").write_text(f"{i},-1000000\n")
     with pytest.raises(InputError, match=r"every force sample lies beyond twice the Nano17's rated range"):
         ingest_trial(open_trial(tdir, "public"), tmp_path / "s2.parquet", 32, smoke_params["tool_ingest"])
+
+
+def test_a_whole_jpeg_with_corrupt_data_is_refused_naming_the_frame(public_trial):
+    from tactilepipe.tool.formats.imagefile import read_image
+    path = public_trial / "tactile1" / "tactile_frame_0002.jpg"
+    data = bytearray(path.read_bytes())
+    for k in range(len(data) // 3, len(data) // 3 + 60):       # scramble entropy-coded bytes, keep the end marker
+        data[k] ^= 0x5A
+    path.write_bytes(bytes(data))
+    with pytest.raises(InputError, match=r"tactile_frame_0002.jpg: corrupt image data: the decoder warned 'Corrupt JPEG"):
+        read_image(path)
+    with pytest.raises(InputError, match=r"tactile_frame_0002.jpg: corrupt image data"):
+        pl.read_public_trial(public_trial, "normal")

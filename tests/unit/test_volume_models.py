@@ -174,6 +174,10 @@ def test_read_shard_errors(tmp_path, sensor_stream, write_ros1_bag):
     ingest_bag(bag, tmp_path / "s1.parquet")
     with pytest.raises(InputError, match="no /hub_0/sensor_0 messages"):
         read_shard(tmp_path / "s1.parquet")
+    bag = write_ros1_bag(tmp_path / "s0.bag", {pa.sensor_topic(0, 0): (pa.SENSOR_STATE, s["stamp_ns"].tolist(), raws)})
+    ingest_bag(bag, tmp_path / "s0.parquet")
+    with pytest.raises(InputError, match=r"s0.parquet: shard has no /hub_0/sensor_1 messages: a lift is read on both"):
+        read_shard(tmp_path / "s0.parquet")
 
 
 def test_longest_run():

@@ -1,4 +1,5 @@
-"""Comparing two runs of the whole pipeline: `tactilepipe diff`."""
+"""Comparing runs and records: `tactilepipe diff` (two runs' metrics) and `tactilepipe verify-data`
+(the workspace's files against DVC's records)."""
 
 from __future__ import annotations
 
@@ -45,6 +46,17 @@ def cmd_diff(args) -> int:
     return 1 if failed else 0
 
 
+def cmd_verify_data(args) -> int:
+    from tactilepipe.pipeline.verify import verify_workspace
+    checked, problems = verify_workspace(args.repo)
+    for line in problems:
+        print(line)
+    print(f"{checked} files tracked by DVC re-hashed: {len(problems)} differ from their records"
+          + ("" if not problems else " (dvc checkout --relink restores them from a sound cache; dvc pull from the "
+                                     "remote when the cache is corrupt too)"))
+    return 1 if problems else 0
+
+
 def add_parsers(sub, common, provenance) -> None:
     s = sub.add_parser("diff", help="compare the metrics of two runs (git revisions, DVC experiments or the "
                                     "workspace), each change classed as signal or noise")
@@ -60,3 +72,8 @@ def add_parsers(sub, common, provenance) -> None:
     s.add_argument("--out", help="write the report here instead of standard output")
     s.add_argument("--repo", default=".", help="the project (default: here)")
     s.set_defaults(func=cmd_diff)
+
+    s = sub.add_parser("verify-data", help="re-hash every file DVC tracks (dvc.lock, .dvc files) and name those whose "
+                                           "content differs from the record (dvc status trusts file times)")
+    s.add_argument("--repo", default=".", help="the project (default: here)")
+    s.set_defaults(func=cmd_verify_data)

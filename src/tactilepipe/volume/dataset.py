@@ -40,6 +40,9 @@ def read_shard(path: str | Path) -> dict:
     by_sensor = {int(s): g for s, g in sensors.groupby("sensor")}
     if 0 not in by_sensor:
         raise InputError(path, "shard has no /hub_0/sensor_0 messages (the reference clock)")
+    if 1 not in by_sensor:      # else its forces would be NaN, and so every feature of volume_sensor 1
+        raise InputError(path, "shard has no /hub_0/sensor_1 messages: a lift is read on both pads (the grip, the "
+                               "load and volume_sensor)")
     t_ns = by_sensor[0]["stamp_ns"].to_numpy()
     out = {"t": (t_ns - t_ns[0]) / 1e9, "stamp_ns": t_ns}
     for s in (0, 1):

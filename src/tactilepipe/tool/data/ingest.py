@@ -153,6 +153,35 @@ def _reference_rows(raw: RawTrial, size: int) -> list[tuple[str, bytes]]:
     return out
 
 
+# A DIGIT streams at 15-60 fps: frame intervals outside 1/240 s to 1 s mean another time unit
+FRAME_INTERVAL_S = (1 / 240, 1.0)
+
+
+def _check_camera_clocks(raw: RawTrial) -> None:
+    """Both cameras' stamps must be on the host clock in nanoseconds: intervals a DIGIT can have,
+    and the two fingers recording at the same time (their spans overlap by half the shorter).
+    A camera on another clock (epoch ms, another host) is refused here, naming it, instead of
+    leaving a trial whose frames never meet a force sample."""
+    spans = {}
+    for name, frames in raw.frames.items():
+        t = frames.host_ns.astype(np.float64)
+        if len(t) > 1:
+            step = float(np.median(np.diff(t))) / 1e9
+            if not FRAME_INTERVAL_S[0] <= step <= FRAME_INTERVAL_S[1]:
+                raise InputError(raw.source, f"{name}: frames {step:.3g} s apart (median): host_ns in another unit "
+                                             f"than nanoseconds? A DIGIT streams at 15-60 fps")
+        spans[name] = (t[0], t[-1])
+    if len(spans) == 2:
+        (a0, a1), (b0, b1) = spans.values()
+        shorter = min(a1 - a0, b1 - b0)
+        overlap = min(a1, b1) - max(a0, b0)
+        if overlap < 0.5 * shorter or (shorter == 0 and overlap < 0):
+            (na, _), (nb, _) = spans.items()
+            raise InputError(raw.source, f"the cameras are not on one clock: {na} records {a0 / 1e9:.3f}-{a1 / 1e9:.3f} s, "
+                                         f"{nb} {b0 / 1e9:.3f}-{b1 / 1e9:.3f} s (host clock), which overlap by "
+                                         f"{max(overlap, 0) / 1e9:.3f} s; both must be stamped by the same host clock")
+
+
 def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, ingest: dict) -> dict:
     """Write the shard atomically; returns the trial's QC record (counts, clock offset found).
 
@@ -169,6 +198,7 @@ def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, ingest: dict
         raise InputError(raw.source, f"no frames of {empty or 'any sensor'} to ingest{why}")
     if len(raw.force_host_ns) == 0:     # e.g. every sample saturated or garbled (counted in raw.drops)
         raise InputError(raw.source, f"no force samples{why}")
+    _check_camera_clocks(raw)
     decoded = {name: _decode_sensor(frames, image_size, name) for name, frames in raw.frames.items()}
     force_ns = raw.force_host_ns.astype(np.int64)
     force = np.asarray(raw.force_n, np.float64)

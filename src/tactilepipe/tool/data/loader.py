@@ -23,6 +23,8 @@ class ToolFrames:
         self.samples = pd.read_parquet(d / "samples.parquet")
         self.trial_index = self.samples["trial_index"].to_numpy()
         self.labels = self.samples[label].to_numpy(np.float32)
+        self.orientation = _orientation(d / "qc.json")
+
 
     def __len__(self) -> int:
         return len(self.samples)
@@ -60,3 +62,14 @@ class ToolFrames:
             part = idx[start:start + batch_size]
             x, y = self.arrays(part)
             yield torch.from_numpy(x).float().div_(255.0), torch.from_numpy(y), part
+
+
+def _orientation(qc_path: Path) -> str | None:
+    """portrait or landscape: how the recorded frames stood before the square resize (a dataset
+    holds one; None for a dataset without qc.json)."""
+    import json
+    from tactilepipe.tool.data.dataset import orientation
+    if not qc_path.is_file():
+        return None
+    kinds = {orientation(t) for t in json.loads(qc_path.read_text()).get("trials", [])}
+    return kinds.pop() if len(kinds) == 1 else None

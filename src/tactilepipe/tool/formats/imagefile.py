@@ -1,8 +1,12 @@
 """Reading one frame file: OpenCV decodes a truncated JPEG without complaint (the missing rows
-come out grey), so a file must end where its format says it ends before it is decoded."""
+come out grey), so a file must end where its format says it ends before it is decoded. A whole
+file can still hold corrupt data: libjpeg and libpng then decode what they can and only print a
+warning ("Corrupt JPEG data: ..."), which ``decode`` catches and turns into a refusal of the frame."""
 
 from __future__ import annotations
 
+import os
+import tempfile
 from pathlib import Path
 
 import cv2
@@ -36,7 +40,31 @@ def read_image(path: str | Path, flags: int = cv2.IMREAD_UNCHANGED, record: str 
     problem = truncation(data)
     if problem:
         raise InputError(path, f"unreadable or missing image: {problem}", record)
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), flags) if data else None
+    img, warning = decode(data, flags) if data else (None, "")
+    if warning:
+        raise InputError(path, f"corrupt image data: the decoder warned {warning!r}", record)
     if img is None:
         raise InputError(path, "unreadable or missing image (not a JPEG or PNG OpenCV can decode)", record)
     return img
+
+
+_WARNINGS = None          # one scratch file per process for the decoders' messages
+
+
+def decode(data: bytes | np.ndarray, flags: int) -> tuple[np.ndarray | None, str]:
+    """``cv2.imdecode`` and what the JPEG/PNG library printed while decoding (its warnings go to
+    the C stderr, which is pointed at a scratch file meanwhile; decoding runs on one thread here)."""
+    global _WARNINGS
+    if _WARNINGS is None:
+        _WARNINGS = tempfile.TemporaryFile()
+    _WARNINGS.seek(0)
+    _WARNINGS.truncate()
+    saved = os.dup(2)
+    try:
+        os.dup2(_WARNINGS.fileno(), 2)
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+    _WARNINGS.seek(0)
+    return img, _WARNINGS.read().decode(errors="replace").strip()

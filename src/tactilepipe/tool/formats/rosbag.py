@@ -27,6 +27,7 @@ import numpy as np
 from rosbags.typesys import Stores, get_typestore
 
 from tactilepipe.core.errors import ArgumentError, InputError
+from tactilepipe.tool.formats.imagefile import decode
 from tactilepipe.tool.formats.native_layout import TrialMeta
 from tactilepipe.tool.formats.raw import SENSORS, RawTrial, SensorFrames
 
@@ -263,11 +264,13 @@ def _frame_loader(path: Path, ros2: bool, topic: str, msgtype: str, raws: list[b
             return np.repeat(rows, 3, axis=2)
         data = np.asarray(msg.data, np.uint8)
         try:
-            img = cv2.imdecode(data, cv2.IMREAD_COLOR)
+            img, warning = decode(data, cv2.IMREAD_COLOR)
         except cv2.error as exc:
             img, why = None, str(exc).strip().splitlines()[-1]
         else:
             why = "cv2.imdecode failed"
+            if warning:
+                img, why = None, f"corrupt image data: the decoder warned {warning!r}"
         if img is None or img.ndim != 3 or img.shape[2] != 3:
             raise InputError(path, f"cannot decode compressed image (format {msg.format!r}, {len(data)} bytes): {why}",
                              _record(topic, index))

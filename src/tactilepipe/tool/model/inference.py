@@ -47,7 +47,13 @@ def _own_model(checkpoint_path: Path, raw) -> tuple[nn.Module, dict]:
         model = build_model(meta["variant"], meta["depth"], meta["image_size"], meta["gam_channel_gate"], meta["width"])
     except ArgumentError as exc:                  # the file's metadata, not the caller's argument
         raise InputError(checkpoint_path, f"metadata: {exc}") from None
-    model.load_state_dict(ckpt["model"])
+    try:
+        model.load_state_dict(ckpt["model"])
+    except RuntimeError as exc:                   # torch lists every mismatched key: the first says enough
+        first = next((line.strip() for line in str(exc).splitlines()[1:] if line.strip()), str(exc))
+        raise InputError(checkpoint_path, f"its weights do not fit the model its metadata describes (variant "
+                                          f"{meta['variant']}, depth {meta['depth']}, width {meta['width']}): "
+                                          f"{first}") from None
     return model, meta
 
 

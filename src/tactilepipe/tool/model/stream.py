@@ -21,6 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from tactilepipe.core.errors import InputError
 from tactilepipe.tool.formats.trials import open_trial
 from tactilepipe.tool.data.ingest import preprocess
 from tactilepipe.tool.data.sync import pair_frames
@@ -47,7 +48,6 @@ def stream_predictions(checkpoint: Path, trial: Path, fmt: str, p: dict, limit: 
 
 
 def _public_label_stats(checkpoint: Path, meta: dict, label_range) -> dict:
-    from tactilepipe.core.errors import InputError
     if meta["head"] == "shear":
         return {"min": 0.0, "max": 1.0}                 # its shear head predicts N
     if label_range is None:
@@ -64,6 +64,11 @@ def _stream(model, meta, trial, fmt, p, limit, out, torch) -> dict:
     left, right = raw.frames["digit_left"], raw.frames["digit_right"]
     period = float(np.median(np.diff(left.host_ns))) if len(left) > 1 else 1e9 / 30
     il, ir = pair_frames(left.host_ns, right.host_ns, int(period / 2))
+    if len(il) == 0:
+        raise InputError(trial, f"no frame pair: no digit_left frame lies within half a frame period of a "
+                                f"digit_right frame (digit_left {_span(left.host_ns)}, digit_right "
+                                f"{_span(right.host_ns)}): are both cameras on the host clock?")
+    _check_orientation(trial, left.load(int(il[0])), meta.get("frame_orientation"))
     if limit:
         il, ir = il[:limit], ir[:limit]
 
@@ -101,3 +106,17 @@ def _stream(model, meta, trial, fmt, p, limit, out, torch) -> dict:
           f"sustained {summary['sustained_pairs_per_s']:.1f} pairs/s (decode + preprocess + model)", file=out)
     return summary
 
+
+
+def _span(host_ns: np.ndarray) -> str:
+    return f"{host_ns[0] / 1e9:.3f}-{host_ns[-1] / 1e9:.3f} s" if len(host_ns) else "no frames"
+
+
+def _check_orientation(trial: Path, bgr: np.ndarray, trained: str | None) -> None:
+    """Frames standing the other way than the model's training frames put the contact elsewhere
+    after the square resize: refused (a checkpoint that does not record it is not checked)."""
+    h, w = bgr.shape[:2]
+    here = "portrait" if h > w else "landscape" if w > h else "square"
+    if trained and here != trained:
+        raise InputError(trial, f"frames are {here} ({w}x{h}), the model was trained on {trained} frames: rotate "
+                                f"them to {trained} first")

@@ -199,7 +199,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
     meta = {"variant": cfg.variant, "depth": cfg.depth, "image_size": cfg.image_size,
             "gam_channel_gate": cfg.gam_channel_gate, "width": cfg.width, "normalise": cfg.normalise, "label_stats": dict(stats), "label": split.get("label"),
             "split": split.get("name"), "split_fingerprint": split_fingerprint(split),
-            "data_fingerprint": data_fingerprint(data)}
+            "data_fingerprint": data_fingerprint(data), "frame_orientation": getattr(data, "orientation", None)}
 
     saved = (torch.get_num_threads(), torch.are_deterministic_algorithms_enabled(),
              torch.is_deterministic_algorithms_warn_only_enabled())
