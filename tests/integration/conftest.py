@@ -13,12 +13,19 @@ from pathlib import Path
 import pytest
 
 from support.project import build, copy_project
+from support.read_audit import audited_snakemake, strace_available
 
 
 @pytest.fixture(scope="session")
 def smoke_build(tmp_path_factory) -> Path:
-    wd = copy_project(tmp_path_factory.mktemp("smoke_build"), scale="smoke")
-    build(wd)
+    """Built under the file-read audit where strace is installed (tests/integration/test_read_audit.py
+    reads its records; the build itself is the same)."""
+    wd = tmp_path_factory.mktemp("smoke_build") / "project"
+    wd.mkdir()
+    copy_project(wd, scale="smoke")
+    if strace_available():
+        audited_snakemake(wd, "--workflow-profile", "workflow/profiles/default")
+    else:
+        build(wd)
     yield wd
-    shutil.rmtree(wd, ignore_errors=True)        # recordings, shards and models: tens of MB
-
+    shutil.rmtree(wd.parent, ignore_errors=True)     # recordings, shards, models and the audit records: tens of MB

@@ -404,3 +404,12 @@ def test_sweep_flags_an_optimum_on_the_edge(smoke_params):
     data, folds = baseline_data(0.02, p)
     res = baseline.sweep(data, folds, 0, p)
     assert res["optima"]["on_edge"].all() and (res["optima"]["mu_opt"] == p["mu_min"]).all()
+
+
+def test_a_pose_in_millimetres_is_refused(sim_lifts, smoke_params):
+    item = sim_lifts[0]
+    shard = read_shard(item["shard"])
+    shard["tool_z"] = shard["tool_z"] * 1000.0                   # /tool_pose published in mm
+    with pytest.raises(InputError, match=r"/tool_pose rises 100 above its rest height: more than an arm reaches "
+                                         r"\(2 m\)\. The pose must be in metres"):
+        off_table_segment(shard, {**smoke_params["segment"], "method": "auto"}, item["shard"])

@@ -14,7 +14,7 @@ from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.volume.labels import read_session_labels
 from tactilepipe.volume.simulate import session_plan
 from tactilepipe.drift.simulate import session_plan as drift_plan
-from tactilepipe.tool.formats.trials import TRIALS_CSV, list_trials as list_tool_trials, public_trial_meta, read_trials_csv
+from tactilepipe.tool.formats.trials import list_trials as list_tool_trials, public_trial_meta, read_trials_csv, trial_files
 from tactilepipe.tool.sim import session_plan as tool_plan
 from tactilepipe.pipeline import runs as run_names
 from tactilepipe.pipeline.scenes import scene_label
@@ -238,12 +238,9 @@ def tool_trial_format(session, trial):
 def tool_trial_input(w):
     """The files a trial's ingest reads (so Snakemake re-ingests exactly the trials that change)."""
     path, fmt = _tool_trial(w.session, w.trial)
-    if is_simulated(w.session):
+    if is_simulated(w.session):   # the simulator writes each trial folder whole; meta.json stands for it
         return [f"raw/tool/{w.session}/nano17.cal", f"{path}/meta.json"]
-    files = [p for p in Path(path).rglob("*") if p.is_file()] if Path(path).is_dir() else [path]
-    if fmt == "public":         # the trial's tool and pose come from the session's trials.csv
-        files.append(f"raw/tool/{w.session}/{TRIALS_CSV}")
-    return files
+    return trial_files(path, fmt, f"raw/tool/{w.session}")
 
 
 @cache
@@ -279,10 +276,17 @@ def tool_shards(kind):
             for name in tool_trial_names(s) if _tool_kind(s, name) == kind]
 
 
-def tool_raw_inputs(kind):
-    """Raw trials of this kind (the pressing-strip figure shows their colour frames)."""
-    return [f for s in P["tool_sessions"] for name in tool_trial_names(s) if _tool_kind(s, name) == kind
+def tool_raw_inputs(kind=None):
+    """Raw trials of this kind, or of every kind (the pressing-strip figure shows their colour
+    frames; provenance.json hashes every file of each session)."""
+    return [f for s in P["tool_sessions"] for name in tool_trial_names(s) if kind is None or _tool_kind(s, name) == kind
             for f in tool_trial_input(type("W", (), {"session": s, "trial": name})())]
+
+
+def drift_raw_inputs():
+    """Every raw file of the drift session (provenance.json hashes them)."""
+    return [f"raw/drift/{DRIFT_SESSION}/{stem}.bag" for stem in drift_bag_stems(DRIFT_SESSION)] + \
+        [f"raw/drift/{DRIFT_SESSION}/session.json"]
 
 
 TOOL_DATA_FIGURES = ["force_histogram", "force_profiles", "rmse_vs_force", "pressing_strip"]

@@ -7,6 +7,7 @@ rule drift_report:
         meta=f"raw/drift/{DRIFT_SESSION}/session.json",
         code=stage_code("cmd_report_drift"),
         params=param_stamp("cmd_report_drift", "drift_session"),
+        raw=drift_raw_inputs(),
         provenance=provenance_inputs("drift"),
     output:
         reported(DRIFT_TARGETS, "drift"),

@@ -24,6 +24,7 @@ import pyarrow.parquet as pq
 from tactilepipe.core.errors import InputError
 
 FORCE_COLS = ["gfx", "gfy", "gfz"]
+MAX_POSE_RISE_M = 2.0        # m: a UR arm reaches 0.5-1.3 m; study 001 lifts by 0.10 m
 
 
 def read_shard(path: str | Path) -> dict:
@@ -117,6 +118,10 @@ def off_table_segment(rec: dict, seg: dict, path: str | Path = "?") -> tuple[int
     if method in ("auto", "pose") and rec["tool_z"] is not None:
         z = rec["tool_z"]
         rest = np.median(z[: max(1, int(0.1 * len(z)))])
+        rise = float(np.nanmax(z) - rest)
+        if not rise <= MAX_POSE_RISE_M:
+            raise InputError(path, f"/tool_pose rises {rise:.4g} above its rest height: more than an arm reaches "
+                                   f"({MAX_POSE_RISE_M:g} m). The pose must be in metres (millimetres?)")
         mask = (z - rest) * 1000.0 > seg["pose_lift_threshold_mm"]
         used = "pose"
     else:

@@ -140,6 +140,23 @@ def open_public_trial(trial_dir: Path) -> RawTrial:
                     reference={"digit_left": data["reference_left"], "digit_right": data["reference_right"]}, **meta)
 
 
+def trial_files(path: str | Path, fmt: str, session_dir: str | Path) -> list[str]:
+    """Every file reading the trial at ``path`` opens: its own files, and the session's files it
+    takes facts from (native: nano17.cal; public: trials.csv; ROS: the bag's sidecar meta.json).
+    The workflow declares exactly these as the trial's inputs."""
+    path, session_dir = Path(path), Path(session_dir)
+    files = [str(p) for p in sorted(path.rglob("*")) if p.is_file()] if path.is_dir() else [str(path)]
+    if fmt == "public":
+        files.append(str(session_dir / TRIALS_CSV))
+    elif fmt == "native":
+        files.append(str(session_dir / "nano17.cal"))
+    else:
+        from tactilepipe.tool.formats.rosbag import sidecar_path
+        if sidecar_path(path).is_file():
+            files.append(str(sidecar_path(path)))
+    return files
+
+
 def open_trial(path: str | Path, fmt: str, ros_topics: dict | None = None) -> RawTrial:
     path = Path(path)
     if fmt == "native":
