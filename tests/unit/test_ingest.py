@@ -31,7 +31,7 @@ def test_shard_has_every_column(shard_frame):
     _, df = shard_frame
     want = ["topic", "stamp_ns", "sensor", *GLOBAL_COLS, "tool_z"]
     for i in range(9):
-        want += [f"f{a}{i}" for a in "xyz"] + [f"d{a}{i}" for a in "xyz"] + [f"contact{i}"]
+        want += [f"f{a}{i}" for a in "xyz"] + [f"d{a}{i}" for a in "xyz"] + [f"contact{i}", f"slip{i}"]
     assert sorted(df.columns) == sorted(want)
     assert set(df["topic"]) == {SENSOR0, SENSOR1, "/tool_pose"}
 

@@ -413,3 +413,28 @@ def test_a_pose_in_millimetres_is_refused(sim_lifts, smoke_params):
     with pytest.raises(InputError, match=r"/tool_pose rises 100 above its rest height: more than an arm reaches "
                                          r"\(2 m\)\. The pose must be in metres"):
         off_table_segment(shard, {**smoke_params["segment"], "method": "auto"}, item["shard"])
+
+
+@pytest.mark.parametrize("mu_s, mu_k, slides", [(0.6, 0.45, False), (0.12, 0.08, True)])
+def test_a_grasp_that_slides_is_flagged_and_left_out(tmp_path, smoke_params, mu_s, mu_k, slides):
+    from tactilepipe.papillarray.shards import ingest_bag
+    from tactilepipe.volume import simulate as vsim
+    from tactilepipe.volume.dataset import SLIP_HOLD_S, build_dataset
+    sim = {**smoke_params["simulate_volume"], "friction_static": mu_s, "friction_kinetic": mu_k}
+    lift = vsim.Lift("v300_main_l00", 300.0, "main", 0, 0)          # the heaviest container
+    rec = vsim.write_lift_bag(tmp_path / "l.bag", lift, sim, smoke_params["seed"])
+    ingest_bag(tmp_path / "l.bag", tmp_path / "l.parquet")
+    assert "slip4" in pd.read_parquet(tmp_path / "l.parquet").columns          # the driver's flags, kept
+    steady = {"lift": "s/steady", "session": "s", "volume_ml": 0.0, "set": "main",
+              "shard": str(tmp_path / "steady.parquet")}
+    vsim.write_lift_bag(tmp_path / "steady.bag", vsim.Lift("v000_main_l00", 0.0, "main", 0, 0),
+                        smoke_params["simulate_volume"], smoke_params["seed"])
+    ingest_bag(tmp_path / "steady.bag", tmp_path / "steady.parquet")
+    lifts = pd.DataFrame([steady, {"lift": "s/heavy", "session": "s", "volume_ml": 300.0, "set": "main",
+                                   "shard": str(tmp_path / "l.parquet")}])
+    data, qc = build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"])
+    heavy = qc.set_index("lift").loc["s/heavy"]
+    assert bool(heavy["slipped"]) is slides and bool(heavy["slip_s"] >= SLIP_HOLD_S) is slides
+    assert ("s/heavy" in set(data["lift"])) is not slides
+    assert not qc.set_index("lift").loc["s/steady", "slipped"]
+    assert bool(rec["gross_slip"].any()) is slides                    # the simulator's own truth agrees

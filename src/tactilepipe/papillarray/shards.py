@@ -105,6 +105,7 @@ def shard_table(decoded: dict) -> pa_.Table:
             for j, ax in enumerate(AXES):
                 cols[f"d{ax}{i}"] = dec["disp"][:, i, j]
             cols[f"contact{i}"] = dec["in_contact"][:, i]
+            cols[f"slip{i}"] = dec["slip_state"][:, i]
         parts.append(cols)
     if decoded["pose"] is not None:
         stamps, z = decoded["pose"]

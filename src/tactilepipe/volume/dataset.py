@@ -24,14 +24,20 @@ import pyarrow.parquet as pq
 from tactilepipe.core.errors import InputError
 
 FORCE_COLS = ["gfx", "gfy", "gfz"]
+PILLAR_LOADED_N = 0.2        # N: a pillar pressing harder than this carries load
+SLIPPING_SHARE = 0.5         # of the loaded pillars of a pad flagged slipping (slip_state != 0): the pad slides
+SLIP_HOLD_S = 0.2            # s: sliding that long, off the table, is a grasp that slipped
 MAX_POSE_RISE_M = 2.0        # m: a UR arm reaches 0.5-1.3 m; study 001 lifts by 0.10 m
 
 
 def read_shard(path: str | Path) -> dict:
     """Global forces per sensor on sensor 0's clock, plus the tool height when recorded."""
     path = Path(path)
+    slip_cols = [f"{c}{i}" for c in ("fz", "slip") for i in range(9)]
     try:
-        table = pq.read_table(path, columns=["topic", "stamp_ns", "sensor", *FORCE_COLS, "tool_z"])
+        names = set(pq.read_schema(path).names)
+        table = pq.read_table(path, columns=["topic", "stamp_ns", "sensor", *FORCE_COLS, "tool_z",
+                                             *(c for c in slip_cols if c in names)])
     except Exception as exc:
         raise InputError(path, f"cannot read shard: {type(exc).__name__}: {exc}") from None
     df = table.to_pandas()
@@ -53,10 +59,28 @@ def read_shard(path: str | Path) -> dict:
                 out[f"{c[1:]}{s}"] = np.full(len(t_ns), np.nan)
             else:  # sensor 1 is put on sensor 0's stamps (the driver publishes both together)
                 out[f"{c[1:]}{s}"] = np.interp(t_ns, g["stamp_ns"].to_numpy(), g[c].to_numpy(np.float64))
+        out[f"slipping{s}"] = (np.interp(t_ns, g["stamp_ns"].to_numpy(), _slipping_share(g))
+                               if g is not None and "slip0" in g else np.zeros(len(t_ns)))
     pose = df[df["tool_z"].notna()]
     out["tool_z"] = (np.interp(t_ns, pose["stamp_ns"].to_numpy(), pose["tool_z"].to_numpy())
                      if len(pose) >= 2 else None)
     return out
+
+
+def _slipping_share(g: pd.DataFrame) -> np.ndarray:
+    """Per sample, the share of a pad's loaded pillars whose slip_state flags them slipping."""
+    fz = g[[f"fz{i}" for i in range(9)]].to_numpy(np.float64)
+    slip = g[[f"slip{i}" for i in range(9)]].to_numpy() != 0
+    loaded = fz > PILLAR_LOADED_N
+    return (slip & loaded).sum(axis=1) / np.maximum(loaded.sum(axis=1), 1)
+
+
+def sustained_slip(rec: dict, start: int, stop: int) -> float:
+    """Longest time (s) off the table during which either pad slid (most of its loaded pillars
+    flagged slipping): the grasp did not hold the container, so its forces do not weigh it."""
+    sliding = (np.maximum(rec["slipping0"], rec["slipping1"])[start:stop] >= SLIPPING_SHARE)
+    a, b = _longest_run(sliding)
+    return float(rec["t"][start + b - 1] - rec["t"][start + a]) if b > a else 0.0
 
 
 def _longest_run(mask: np.ndarray) -> tuple[int, int]:
@@ -197,7 +221,9 @@ def _check_fz_sign(rec: dict, start: int, stop: int, noise: float, path) -> None
 
 
 def build_dataset(lifts: pd.DataFrame, seg: dict, axes: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Off-table samples of every lift, and a QC row per lift.
+    """Off-table samples of every lift, and a QC row per lift. A lift whose grasp slid for
+    SLIP_HOLD_S or longer off the table (the pads' slip flags) is left out of the samples and
+    marked ``slipped`` in its QC row, with the time it slid (``slip_s``).
 
     lifts: columns lift (unique id), session, volume_ml, set, shard (path); axes: params.yaml
     papillarray_axes.
@@ -206,15 +232,23 @@ def build_dataset(lifts: pd.DataFrame, seg: dict, axes: dict) -> tuple[pd.DataFr
     for row in lifts.itertuples(index=False):
         rec = apply_axes(read_shard(row.shard), axes)
         start, stop, used = off_table_segment(rec, seg, row.shard)
+        slid = sustained_slip(rec, start, stop)
         part = pd.DataFrame({k: rec[k][start:stop] for k in
                              ("t", "fx0", "fy0", "fz0", "fx1", "fy1", "fz1")})
         part.insert(0, "lift", row.lift)
         part.insert(1, "session", row.session)
         part.insert(2, "volume_ml", row.volume_ml)
         part.insert(3, "set", row.set)
-        frames.append(part)
+        if slid < SLIP_HOLD_S:
+            frames.append(part)
         qc.append({"lift": row.lift, "session": row.session, "volume_ml": row.volume_ml, "set": row.set,
                    "samples": len(rec["t"]), "off_table_samples": stop - start,
                    "off_table_s": float(rec["t"][stop - 1] - rec["t"][start]), "segment_method": used,
-                   "mean_fy0": float(part["fy0"].mean()), "mean_fz0": float(part["fz0"].mean())})
-    return pd.concat(frames, ignore_index=True), pd.DataFrame(qc)
+                   "mean_fy0": float(part["fy0"].mean()), "mean_fz0": float(part["fz0"].mean()),
+                   "slip_s": slid, "slipped": slid >= SLIP_HOLD_S})
+    qc = pd.DataFrame(qc)
+    if not frames:
+        raise InputError(lifts["shard"].iloc[0], f"every lift's grasp slid off the table (longest slides "
+                                                 f"{qc['slip_s'].min():.2f}-{qc['slip_s'].max():.2f} s): no lift "
+                                                 f"weighs its container")
+    return pd.concat(frames, ignore_index=True), qc

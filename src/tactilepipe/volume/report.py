@@ -68,6 +68,12 @@ def _peak_pillar_forces(shard: Path) -> tuple[np.ndarray, float]:
     return forces, (s0["stamp_ns"][k] - s0["stamp_ns"][0]) / 1e9
 
 
+def _slipped_lifts(qc_path: Path) -> list[str]:
+    """Lifts left out of the models because their grasp slid off the table (volume/dataset.py)."""
+    qc = pd.read_csv(qc_path)
+    return sorted(qc.loc[qc["slipped"], "lift"]) if "slipped" in qc else []
+
+
 def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
     modalities = list(p["mlp"]["modalities"])
     fold_tables = {m: pd.read_csv(res / "mlp" / m / "folds.csv") for m in modalities}
@@ -164,6 +170,7 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
         "table2_ml": {f"{v:g}": float(e) for v, e in zip(table2["true_ml"], table2["estimated_ml"])},
         "grid_best": grid.iloc[0][["hidden_units", "alpha", "learning_rate", "r2_mean"]].to_dict(),
         "scale": p["scale"],
+        "lifts_slipped": _slipped_lifts(res / "qc.csv"),
     }
     metrics = _json_safe(metrics)
     write_json(res / "metrics.json", metrics)

@@ -288,8 +288,9 @@ def write_lift_bag(path: str | Path, lift: Lift, sim: dict, seed: int) -> dict:
     tus = np.round((stamps - SESSION_EPOCH_S * 1_000_000_000) / 1000).astype(np.int64)
     topics = {}
     for s in range(2):
+        # slip_state: 1 while the pillar slides over the wall (stick/slip solve), else 0
         raws = pa.encode_sensor_states(stamps, tus, rec["disp"][:, s], rec["force"][:, s],
-                                       rec["in_contact"][:, s], np.zeros((len(stamps), 9), np.int32),
+                                       rec["in_contact"][:, s], rec["slip"][:, s].astype(np.int32),
                                        frame_id=f"hub_0/sensor_{s}")
         topics[pa.sensor_topic(0, s)] = (pa.SENSOR_STATE, stamps.tolist(), raws)
     pose_stamps = start + np.round(rec["pose_t"] * 1e9).astype(np.int64)
