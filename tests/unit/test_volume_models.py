@@ -438,3 +438,14 @@ def test_a_grasp_that_slides_is_flagged_and_left_out(tmp_path, smoke_params, mu_
     assert ("s/heavy" in set(data["lift"])) is not slides
     assert not qc.set_index("lift").loc["s/steady", "slipped"]
     assert bool(rec["gross_slip"].any()) is slides                    # the simulator's own truth agrees
+
+
+def test_a_label_heavier_than_what_the_pads_carry_is_refused(sim_lifts, smoke_params):
+    item = sim_lifts[1]
+    lifts = pd.DataFrame([{"lift": "s/x", "session": "s", "volume_ml": item["lift"].volume_ml, "set": "main",
+                           "shard": str(item["shard"])}])
+    build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"])          # its own label: kept
+    lifts["volume_ml"] = 5000.0                                                              # litres typed as ml
+    with pytest.raises(InputError, match=r"lift s/x: lifts.csv gives 5000 ml \(49.05 N of water\) but the pads "
+                                         r"carry \d\.\d\d N off the table"):
+        build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"])

@@ -220,6 +220,23 @@ def _check_fz_sign(rec: dict, start: int, stop: int, noise: float, path) -> None
                                f"z axis? Map it in params.yaml papillarray_axes (e.g. z: '-z')")
 
 
+WATER_N_PER_ML = 9.81e-3      # 1 g of water per ml, in N
+LABEL_WEIGHT_SHARE = 0.8      # the pads must carry at least this share of the labelled water's weight,
+LABEL_WEIGHT_SLACK_N = 0.5    # less this much (bias and drift of the two sensors), whatever the container weighs
+
+
+def _check_label_weight(row, carried_n: float, slid_s: float) -> None:
+    """A lift's label against what the pads weigh: the container and its water hang from the pads
+    off the table, so they carry at least the labelled water's weight (the container's own, which
+    the analysis does not know, only adds). A label far above it is a wrong row or unit in
+    lifts.csv, refused naming the lift; a grasp that slid is judged by its slip instead."""
+    water_n = row.volume_ml * WATER_N_PER_ML
+    if slid_s < SLIP_HOLD_S and carried_n < LABEL_WEIGHT_SHARE * water_n - LABEL_WEIGHT_SLACK_N:
+        raise InputError(row.shard, f"lift {row.lift}: lifts.csv gives {row.volume_ml:g} ml ({water_n:.2f} N of water) "
+                                    f"but the pads carry {carried_n:.2f} N off the table: a wrong row or unit in "
+                                    f"lifts.csv (volume_ml is in millilitres)?")
+
+
 def build_dataset(lifts: pd.DataFrame, seg: dict, axes: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Off-table samples of every lift, and a QC row per lift. A lift whose grasp slid for
     SLIP_HOLD_S or longer off the table (the pads' slip flags) is left out of the samples and
@@ -235,6 +252,7 @@ def build_dataset(lifts: pd.DataFrame, seg: dict, axes: dict) -> tuple[pd.DataFr
         slid = sustained_slip(rec, start, stop)
         part = pd.DataFrame({k: rec[k][start:stop] for k in
                              ("t", "fx0", "fy0", "fz0", "fx1", "fy1", "fz1")})
+        _check_label_weight(row, float((part["fy0"] + part["fy1"]).median()), slid)
         part.insert(0, "lift", row.lift)
         part.insert(1, "session", row.session)
         part.insert(2, "volume_ml", row.volume_ml)

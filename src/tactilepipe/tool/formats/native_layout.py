@@ -59,6 +59,13 @@ TOOL_NAME = re.compile(r"[a-z0-9_]+")
 _INT = re.compile(r"^-?[0-9]+$")
 
 
+# plausible values of a trial's metadata: beyond, a unit or a typo (a pose in radians or metres)
+META_RANGES = {"orientation_deg": (-180.0, 180.0, "degrees of tilt of the tool axis in the pad plane"),
+               "insertion_mm": (0.0, 200.0, "mm from the gel's fingertip edge to the butt end: within a tool's length"),
+               "camera_fps": (1.0, 240.0, "a DIGIT streams at 15-60 fps"),
+               "serial_hz": (1.0, 10000.0, "samples per second of the Arduino's log")}
+
+
 @dataclass
 class TrialMeta:
     trial: str
@@ -112,6 +119,9 @@ class TrialMeta:
             value = raw.get(key, 0.0)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise InputError(where, f"{key} must be a finite number, got {value!r}")
+            low, high, why = META_RANGES[key]
+            if key in raw and not low <= value <= high:
+                raise InputError(where, f"{key} {value!r} is outside {low:g} to {high:g} ({why})")
         return cls(**raw)
 
 
