@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SNAKEMAKE := $(BIN)/snakemake --cores 2 --workflow-profile workflow/profiles/default
 
-.PHONY: run test test-slurm smoke regimes bench clean-results pull dvc.yaml study000-import study000 study000-published
+.PHONY: run test test-unit test-slurm smoke regimes bench clean-results pull dvc.yaml study000-import study000 study000-published
 
 $(STAMP): requirements.txt pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -38,6 +38,9 @@ study000-published: $(STAMP)  ## the published weights over every frame (contami
 
 test: $(STAMP)  ## the whole test suite (unit + smoke-scale integration through real Snakemake), on 2 workers
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest -n 2
+
+test-unit: $(STAMP)  ## the quick loop: unit tests not marked slow (no model trained beyond a few steps), on 2 workers
+	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest -n 2 -m "not slow" tests/unit
 
 test-slurm: $(STAMP)  ## the smoke scale through a single-node SLURM cluster started here (root; apt-installs slurm-wlm, munge)
 	PATH=$(CURDIR)/$(BIN):$$PATH TACTILEPIPE_SLURM_TEST=1 $(BIN)/pytest -m slurm -v tests/integration/test_cluster.py

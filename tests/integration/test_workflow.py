@@ -128,6 +128,15 @@ def test_changing_a_model_parameter_reruns_only_what_depends_on_it(smoke_build: 
     assert planned == {"volume_baseline", "volume_report"}, planned
 
 
+def test_a_nested_config_override_is_typed_as_params_yaml_has_it(smoke_build: Path, tmp_path: Path):
+    wd = linked_copy(smoke_build, tmp_path / "wd")       # the dry run rewrites parameter stamps
+    out = snakemake(wd, "-n", "--config", "scale=smoke", 'folds={"n_folds": 3}')
+    planned = set(re.findall(r"^(?:local)?rule (\w+):$", out.stdout, flags=re.M)) - {"all"}
+    assert "volume_split" in planned and "ingest_papillarray" not in planned, planned   # n_folds 3, an integer
+    bad = snakemake(wd, "-n", "--config", "scale=smoke", 'folds={"n_folds": "three"}', check=False)
+    assert bad.returncode != 0 and "'folds.n_folds': 'three' is not of type 'integer'" in bad.stdout + bad.stderr
+
+
 def test_a_scene_pulls_in_only_its_rules(tmp_path: Path):
     wd = copy_project(tmp_path)
     out = snakemake(wd, "-n", "--config", "scale=smoke", "scenes=[drift]").stdout

@@ -167,6 +167,7 @@ def reference_forward(sd, x, blocks=(3, 4, 23, 3), head="normal"):
     return F.linear(z, sd[f"fc.{i2}.weight"], sd[f"fc.{i2}.bias"]).squeeze(1)
 
 
+@pytest.mark.slow
 def test_public_state_dict_round_trips_losslessly_at_paper_depth_and_computes_the_same(tmp_path):
     public = random_state(public_spec())
     path = tmp_path / "best_model_normal.pth"

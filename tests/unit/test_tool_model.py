@@ -222,6 +222,7 @@ class CrashingData:
 
 # ----------------------------------------------------------------------------- training
 
+@pytest.mark.slow
 def test_training_lowers_validation_loss(tiny, tmp_path):
     data, split = tiny
     cfg = quick_cfg(max_epochs=6, lr=1e-3, batch_size=16, width=PAPER_WIDTH)     # the paper's model
