@@ -427,7 +427,7 @@ META_CASES = {
     "infinite_number": ('{"trial": "t", "tool": "k", "kind": "normal", "orientation_deg": 1e999, "insertion_mm": 2}',
                         "orientation_deg must be a finite number"),
     "orientation_out_of_range": (json.dumps({"trial": "t", "tool": "k", "kind": "normal", "orientation_deg": 5000,
-                                             "insertion_mm": 2}), r"orientation_deg 5000 is outside -180 to 180"),
+                                             "insertion_mm": 2}), r"orientation_deg 5000 is outside -360 to 360"),
     "negative_insertion": (json.dumps({"trial": "t", "tool": "k", "kind": "normal", "orientation_deg": 5,
                                         "insertion_mm": -0.014}), r"insertion_mm -0.014 is outside 0 to 200"),
     "tool_with_a_space": (json.dumps({"trial": "t", "tool": "Screwdriver 1", "kind": "normal", "orientation_deg": 1,

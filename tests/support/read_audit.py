@@ -100,8 +100,16 @@ def parse(log: Path) -> dict[int, Process]:
         result = _RESULT.search(rest)
         ret = int(result.group(1)) if result else -1
         if call in ("clone", "clone3", "fork", "vfork") and ret > 0:
-            if ret in procs:
-                ended.append(procs.pop(ret))
+            child = procs.get(ret)
+            if child is not None and child.parent is None:
+                # the child's own lines came first (strace split the parent's clone around them):
+                # it is this child, and keeps what it did (an execve sets its own stage)
+                child.parent = pid
+                child.argv = child.argv or list(proc(pid).argv)
+                child.stage = child.stage or proc(pid).stage
+                continue
+            if child is not None:
+                ended.append(procs.pop(ret))     # an id used again by a new process
             proc(ret).parent = pid
             proc(ret).argv, proc(ret).stage = list(proc(pid).argv), proc(pid).stage
         elif call == "execve" and ret == 0:

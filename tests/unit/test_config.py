@@ -260,3 +260,6 @@ def test_nested_config_text_takes_the_type_params_yaml_has(raw_params):
     typed = typed_like(given, raw_params)
     assert typed == {"folds": {"n_folds": 2}, "tool_train": {"variants": ["full"], "kernels": "native"}, "seed": 7}
     assert typed_like({"folds": {"n_folds": "two"}}, raw_params) == {"folds": {"n_folds": "two"}}   # left to validation
+    assert typed_like({"tool_train": {"lr": "1e-4"}}, raw_params) == {"tool_train": {"lr": 1e-4}}  # YAML 1.1 reads text
+    assert typed_like({"tool_train": {"sweep": [{"depth": "34", "image_size": "8"}]}}, raw_params) == \
+        {"tool_train": {"sweep": [{"depth": 34, "image_size": 8}]}}

@@ -501,3 +501,13 @@ def test_a_whole_jpeg_with_corrupt_data_is_refused_naming_the_frame(public_trial
         read_image(path)
     with pytest.raises(InputError, match=r"tactile_frame_0002.jpg: corrupt image data"):
         pl.read_public_trial(public_trial, "normal")
+
+
+def test_padding_before_the_jpeg_end_marker_is_not_corruption(tmp_path):
+    from tactilepipe.tool.formats.imagefile import read_image
+    ok, buf = cv2.imencode(".jpg", _smooth_frames(1, 9)[0])
+    data = buf.tobytes()
+    path = tmp_path / "padded.jpg"
+    path.write_bytes(data[:-2] + b"\x00\x00" + data[-2:])        # what UVC/MJPEG cameras write
+    img = read_image(path)
+    assert np.array_equal(img, cv2.imdecode(buf, cv2.IMREAD_UNCHANGED))

@@ -32,7 +32,12 @@ def cmd_diff(args) -> int:
     unknown = set(scenes) - set(diff.SCENES)
     if unknown:
         raise ArgumentError(f"unknown scene(s) {', '.join(sorted(unknown))} (one of {', '.join(diff.SCENES)})")
-    diffs = diff.diff_runs(diff.read_run(old_rev, args.repo), diff.read_run(new_rev, args.repo), scenes)
+    diffs = diff.diff_runs(diff.read_run(old_rev, args.repo, scenes), diff.read_run(new_rev, args.repo, scenes), scenes)
+    names = {r.metric.rsplit(".", 1)[-1] for d in diffs for r in d.rows}
+    unknown_metrics = sorted(set(tolerances) - names)
+    if unknown_metrics:
+        raise ArgumentError(f"--fail-on {', '.join(unknown_metrics)}: no such metric in these runs (e.g. "
+                            f"{', '.join(sorted(names & {'mae', 'rmse', 'r2'}) or sorted(names)[:3])})")
     text = (json.dumps(diff.as_json(diffs), indent=1, sort_keys=True) + "\n" if args.json
             else diff.markdown(diffs, old_rev, new_rev or "workspace", show_same=args.all))
     if args.out:

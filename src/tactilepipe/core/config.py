@@ -44,16 +44,27 @@ def typed_like(values: dict, reference: dict) -> dict:
     out = {}
     for key, value in values.items():
         ref = reference.get(key) if isinstance(reference, dict) else None
-        if isinstance(value, dict):
-            out[key] = typed_like(value, ref if isinstance(ref, dict) else {})
-        elif isinstance(value, str) and ref is not None and not isinstance(ref, str):
-            try:
-                out[key] = yaml.safe_load(value)
-            except yaml.YAMLError:
-                out[key] = value               # left as text: validation names the key and the type
-        else:
-            out[key] = value
+        out[key] = _typed(value, ref)
     return out
+
+
+def _typed(value, ref):
+    if isinstance(value, dict):
+        return typed_like(value, ref if isinstance(ref, dict) else {})
+    if isinstance(value, list) and isinstance(ref, list) and ref:
+        return [_typed(v, ref[0]) for v in value]
+    if isinstance(value, str) and ref is not None and not isinstance(ref, str):
+        try:
+            parsed = yaml.safe_load(value)
+        except yaml.YAMLError:
+            return value                       # left as text: validation names the key and the type
+        if isinstance(parsed, str) and isinstance(ref, (int, float)) and not isinstance(ref, bool):
+            try:
+                return float(parsed)           # 1e-4: YAML 1.1 reads an exponent without a dot as text
+            except ValueError:
+                return value
+        return parsed
+    return value
 
 
 def _format_error(err: jsonschema.ValidationError, source: str) -> str:

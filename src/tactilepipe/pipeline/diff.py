@@ -103,19 +103,19 @@ class SceneDiff:
 
 # ----------------------------------------------------------------------------- reading a run
 
-def read_run(rev: str | None, repo: str = ".") -> dict[str, dict | None]:
+def read_run(rev: str | None, repo: str = ".", scenes=SCENES) -> dict[str, dict | None]:
     """Each scene's ``metrics.json`` and ``provenance.json`` at ``rev`` (None: the workspace);
     a scene the run does not have is None."""
     import dvc.api
-    from dvc.exceptions import DvcException
+    from dvc.exceptions import DvcException, PathMissingError
     out = {}
-    for scene in SCENES:
+    for scene in scenes:
         files = {}
         for name in ("metrics", "provenance"):
             path = f"results/{scene}/{name}.json"
             try:
                 files[name] = json.loads(dvc.api.read(path, repo=repo, rev=rev))
-            except FileNotFoundError:
+            except (FileNotFoundError, PathMissingError):
                 files[name] = None
             except (DvcException, json.JSONDecodeError) as exc:
                 raise InputError(f"{path} at {rev or 'the workspace'}", str(exc).splitlines()[0]) from None

@@ -8,18 +8,9 @@ tracks, directories expanded through their manifests, and compares its md5 with 
 
 from __future__ import annotations
 
-import hashlib
 from pathlib import Path
 
-CHUNK = 1 << 20
-
-
-def file_md5(path: Path) -> str:
-    h = hashlib.md5()
-    with open(path, "rb") as f:
-        while chunk := f.read(CHUNK):
-            h.update(chunk)
-    return h.hexdigest()
+from tactilepipe.core.hashing import file_digest
 
 
 def verify_workspace(root: str | Path = ".") -> tuple[int, list[str]]:
@@ -29,7 +20,12 @@ def verify_workspace(root: str | Path = ".") -> tuple[int, list[str]]:
     root = Path(root)
     checked, problems = 0, []
     with Repo(str(root)) as repo:
-        for key, entry in repo.index.data["repo"].iteritems():
+        try:
+            entries = list(repo.index.data["repo"].iteritems())
+        except Exception as exc:  # noqa: BLE001  (dvc_data's DataIndexDirError and kin: a manifest it cannot read)
+            return 0, [f"cannot list the tracked files: {type(exc).__name__}: {str(exc).splitlines()[0]} (a directory's "
+                       f"manifest is missing or corrupt in the cache: `dvc fetch` restores it from the remote)"]
+        for key, entry in entries:
             if entry.meta is not None and entry.meta.isdir:
                 continue
             recorded = entry.hash_info
@@ -40,7 +36,7 @@ def verify_workspace(root: str | Path = ".") -> tuple[int, list[str]]:
             if not path.is_file():
                 problems.append(f"{path.relative_to(root)}: missing (recorded md5 {recorded.value})")
                 continue
-            actual = file_md5(path)
+            actual = file_digest(path, "md5")
             if actual != recorded.value:
                 problems.append(f"{path.relative_to(root)}: content md5 {actual}, recorded {recorded.value}")
     return checked, problems

@@ -268,5 +268,7 @@ def build_dataset(lifts: pd.DataFrame, seg: dict, axes: dict) -> tuple[pd.DataFr
     if not frames:
         raise InputError(lifts["shard"].iloc[0], f"every lift's grasp slid off the table (longest slides "
                                                  f"{qc['slip_s'].min():.2f}-{qc['slip_s'].max():.2f} s): no lift "
-                                                 f"weighs its container")
+                                                 f"weighs its container. If these grasps held, the sensor's "
+                                                 f"slip_state uses a non-zero code for not slipping "
+                                                 f"(docs/papillarray.md)")
     return pd.concat(frames, ignore_index=True), qc

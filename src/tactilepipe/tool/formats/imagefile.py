@@ -6,7 +6,9 @@ warning ("Corrupt JPEG data: ..."), which ``decode`` catches and turns into a re
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
+import threading
 from pathlib import Path
 
 import cv2
@@ -48,23 +50,32 @@ def read_image(path: str | Path, flags: int = cv2.IMREAD_UNCHANGED, record: str 
     return img
 
 
-_WARNINGS = None          # one scratch file per process for the decoders' messages
+# Decoder messages that say nothing about the pixels: padding before the end marker (UVC/MJPEG
+# cameras write it), and a PNG's colour-profile chunk. OpenCV's own log lines start with "[".
+BENIGN = ("extraneous bytes before marker 0xd9", "iCCP:")
+_LOCK = threading.Lock()  # the C stderr is the process's: one decode at a time points it elsewhere
+_SCRATCH: dict[int, object] = {}   # per process (a forked child must not share the parent's offset)
 
 
 def decode(data: bytes | np.ndarray, flags: int) -> tuple[np.ndarray | None, str]:
-    """``cv2.imdecode`` and what the JPEG/PNG library printed while decoding (its warnings go to
-    the C stderr, which is pointed at a scratch file meanwhile; decoding runs on one thread here)."""
-    global _WARNINGS
-    if _WARNINGS is None:
-        _WARNINGS = tempfile.TemporaryFile()
-    _WARNINGS.seek(0)
-    _WARNINGS.truncate()
-    saved = os.dup(2)
-    try:
-        os.dup2(_WARNINGS.fileno(), 2)
-        img = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-    _WARNINGS.seek(0)
-    return img, _WARNINGS.read().decode(errors="replace").strip()
+    """``cv2.imdecode`` and the warnings the JPEG/PNG library printed while decoding (they go to
+    the C stderr, which is pointed at a scratch file meanwhile), less the benign ones."""
+    with _LOCK:
+        scratch = _SCRATCH.get(os.getpid())
+        if scratch is None:
+            scratch = _SCRATCH[os.getpid()] = tempfile.TemporaryFile()
+        scratch.seek(0)
+        scratch.truncate()
+        sys.stderr.flush()
+        saved = os.dup(2)
+        try:
+            os.dup2(scratch.fileno(), 2)
+            img = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        scratch.seek(0)
+        lines = scratch.read().decode(errors="replace").splitlines()
+    warnings = [line.strip() for line in lines if line.strip() and not line.lstrip().startswith("[")
+                and not any(b in line for b in BENIGN)]
+    return img, "; ".join(warnings)

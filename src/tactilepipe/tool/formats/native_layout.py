@@ -60,7 +60,7 @@ _INT = re.compile(r"^-?[0-9]+$")
 
 
 # plausible values of a trial's metadata: beyond, a unit or a typo (a pose in radians or metres)
-META_RANGES = {"orientation_deg": (-180.0, 180.0, "degrees of tilt of the tool axis in the pad plane"),
+META_RANGES = {"orientation_deg": (-360.0, 360.0, "degrees of tilt of the tool axis in the pad plane"),
                "insertion_mm": (0.0, 200.0, "mm from the gel's fingertip edge to the butt end: within a tool's length"),
                "camera_fps": (1.0, 240.0, "a DIGIT streams at 15-60 fps"),
                "serial_hz": (1.0, 10000.0, "samples per second of the Arduino's log")}

@@ -115,8 +115,9 @@ def _span(host_ns: np.ndarray) -> str:
 def _check_orientation(trial: Path, bgr: np.ndarray, trained: str | None) -> None:
     """Frames standing the other way than the model's training frames put the contact elsewhere
     after the square resize: refused (a checkpoint that does not record it is not checked)."""
+    from tactilepipe.tool.data.dataset import orientation
     h, w = bgr.shape[:2]
-    here = "portrait" if h > w else "landscape" if w > h else "square"
-    if trained and here != trained:
+    here = orientation({"frame_size": {"frame": [w, h]}})
+    if trained in ("portrait", "landscape", "square") and here != trained:
         raise InputError(trial, f"frames are {here} ({w}x{h}), the model was trained on {trained} frames: rotate "
                                 f"them to {trained} first")

@@ -190,7 +190,8 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
 
     out_dir = Path(out_dir)
     train_idx, val_idx = _check_data(data, split, cfg)
-    device = resolve_device(cfg.device)
+    # portable kernels are CPU kernels: "auto" takes the CPU even where CUDA is present
+    device = resolve_device("cpu" if cfg.kernels == "portable" and cfg.device == "auto" else cfg.device)
     if cfg.kernels == "portable" and device.type != "cpu":
         raise ConfigError(f"tool_train.kernels: portable pins CPU kernels, but the run is on {device}: "
                           f"set kernels: native for a GPU run")
