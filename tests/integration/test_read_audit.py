@@ -89,6 +89,7 @@ def test_real_session_layouts_read_only_declared_files(tmp_path: Path, smoke_par
     (wd / "raw/tool/real-ros").mkdir()
     write_ros(wd / "raw/tool/real-ros/t0.bag", "ros1")
     run(tp + ["simulate", "drift", "--scale", "smoke", "--out-dir", str(wd / "raw/drift/real-drift")], wd)
+    (wd / "raw/drift/real-drift/notes.txt").write_text("room at 22 C\n")   # provenance.json hashes it too
     config = ["--config", 'tool_sessions=["real-native", "real-public", "real-ros"]', "drift_session=real-drift"]
     targets = ["results/tool/shards/real-native/t1.parquet", f"results/tool/shards/real-public/data_normal-{public[0]}.parquet",
                "results/tool/shards/real-ros/t0.parquet", "results/drift/metrics.json"]
@@ -99,7 +100,8 @@ def test_real_session_layouts_read_only_declared_files(tmp_path: Path, smoke_par
     assert ran >= {"ingest_tool", "ingest_papillarray", "drift_report"}, ran
     read_files = set().union(*reads.values())
     assert {"raw/tool/real-native/nano17.cal", "raw/tool/real-native/t1/meta.json", "raw/tool/real-public/trials.csv",
-            "raw/tool/real-ros/t0.meta.json", "raw/drift/real-drift/session.json"} <= read_files
+            "raw/tool/real-ros/t0.meta.json", "raw/drift/real-drift/session.json",
+            "raw/drift/real-drift/notes.txt"} <= read_files
     assert undeclared(reads, [j for j in jobs if j.command in reads]) == {}
     assert undeclared_code(audit.imported(), [j for j in jobs if j.command in reads]) == {}
     assert json.loads((wd / "results/drift/metrics.json").read_text())

@@ -143,10 +143,19 @@ def drift_bag_stems(session):
     return stems
 
 
+def session_files(scene, session, simulated):
+    """Every file of a recording session, which provenance.json hashes whole: a real session's
+    files as they are on disk (a note or a spare file beside the recordings too), a simulated
+    one's as its simulate job declares them (``simulated``)."""
+    if is_simulated(session):
+        return list(simulated)
+    return sorted(str(p) for p in Path(f"raw/{scene}/{session}").rglob("*") if p.is_file())
+
+
 def volume_raw_inputs():
     """Every raw file of the volume sessions (provenance.json hashes them)."""
-    return [f"raw/volume/{s}/{stem}.bag" for s in P["volume_sessions"] for stem in volume_bag_stems(s)] + \
-        [f"raw/volume/{s}/lifts.csv" for s in P["volume_sessions"]]
+    return [f for s in P["volume_sessions"] for f in session_files(
+        "volume", s, [f"raw/volume/{s}/{stem}.bag" for stem in volume_bag_stems(s)] + [f"raw/volume/{s}/lifts.csv"])]
 
 
 def drift_shards():
@@ -276,17 +285,22 @@ def tool_shards(kind):
             for name in tool_trial_names(s) if _tool_kind(s, name) == kind]
 
 
-def tool_raw_inputs(kind=None):
-    """Raw trials of this kind, or of every kind (the pressing-strip figure shows their colour
-    frames; provenance.json hashes every file of each session)."""
-    return [f for s in P["tool_sessions"] for name in tool_trial_names(s) if kind is None or _tool_kind(s, name) == kind
+def tool_raw_inputs(kind):
+    """Raw trials of this kind (the pressing-strip figure shows their colour frames)."""
+    return [f for s in P["tool_sessions"] for name in tool_trial_names(s) if _tool_kind(s, name) == kind
             for f in tool_trial_input(type("W", (), {"session": s, "trial": name})())]
+
+
+def tool_session_files():
+    """Every file of the tool sessions (provenance.json hashes them)."""
+    return [f for s in P["tool_sessions"] for f in session_files(
+        "tool", s, [f for name in tool_trial_names(s) for f in tool_trial_input(type("W", (), {"session": s, "trial": name})())])]
 
 
 def drift_raw_inputs():
     """Every raw file of the drift session (provenance.json hashes them)."""
-    return [f"raw/drift/{DRIFT_SESSION}/{stem}.bag" for stem in drift_bag_stems(DRIFT_SESSION)] + \
-        [f"raw/drift/{DRIFT_SESSION}/session.json"]
+    return session_files("drift", DRIFT_SESSION, [f"raw/drift/{DRIFT_SESSION}/{stem}.bag" for stem in
+                                                  drift_bag_stems(DRIFT_SESSION)] + [f"raw/drift/{DRIFT_SESSION}/session.json"])
 
 
 TOOL_DATA_FIGURES = ["force_histogram", "force_profiles", "rmse_vs_force", "pressing_strip"]

@@ -182,7 +182,7 @@ rule tool_model_report:
                               f=["eval.json", "predictions.parquet"]),
         splits=lambda w: [f"results/{w.scene}/splits/{run_spec(r)[1]}.json" for r in tool_runs(w.scene)],
         data=rules.tool_dataset.output,
-        raw=tool_raw_inputs(),
+        raw=tool_session_files(),
         code=stage_code("cmd_tool_report"),
         params=param_stamp("cmd_tool_report", "tool_sessions", "tool_train.split", "tool_train.depth",
                            "tool_train.image_size", "tool_train.sweep", "tool_train.loto", "tool_split.repeats"),
