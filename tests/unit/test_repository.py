@@ -60,3 +60,20 @@ def test_nothing_points_outside_the_repository():
     hits = [f"{name}:{text[:m.start()].count(chr(10)) + 1}: {m.group(0)}"
             for name, text in tracked_text_files() for rx in OUTSIDE for m in rx.finditer(text)]
     assert not hits, hits
+
+
+def test_the_declared_dependencies_admit_the_locked_versions():
+    import tomllib
+    from packaging.requirements import Requirement
+    from packaging.utils import canonicalize_name
+    declared = [Requirement(r) for r in tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())["project"]["dependencies"]]
+    locked = {}
+    for line in (REPO_ROOT / "requirements.txt").read_text().splitlines():
+        if "==" in line and not line.startswith("#"):
+            name, version = line.split("==")
+            locked[canonicalize_name(name)] = version.strip()
+    assert declared, "pyproject.toml declares no dependencies: `pip install .` would give a package that cannot import"
+    for req in declared:
+        version = locked.get(canonicalize_name(req.name))
+        assert version is not None, f"{req.name}: declared in pyproject.toml, not locked in requirements.txt"
+        assert req.specifier.contains(version, prereleases=True), f"{req}: the lock has {version}"

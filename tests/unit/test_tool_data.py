@@ -10,7 +10,8 @@ from tactilepipe.core.errors import InputError
 from tactilepipe.tool.formats.serial_log import read_serial_log
 from tactilepipe.tool.data.splits import make_split, parse_split_name, split_name, thin_training
 from tactilepipe.tool.data.clock_sync import fit_offset
-from tactilepipe.tool.data.sync import calibrate, interpolate_at, pair_frames
+from tactilepipe.tool.data.sync import interpolate_at, pair_frames
+from tactilepipe.tool.formats.native_layout import calibrate
 
 
 def write_log(path, lines, header="# start_host_ns=1000000000", newline_at_end=True):

@@ -10,13 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from tactilepipe.tool.formats.native_layout import counts_to_volts
-
-
-def calibrate(counts: np.ndarray, matrix: np.ndarray, bias_counts: np.ndarray) -> np.ndarray:
-    """Forces/torques (n, 6) from gauge counts: F = C (v - v_bias)."""
-    volts = counts_to_volts(counts) - counts_to_volts(bias_counts)
-    return volts @ matrix.T
 
 
 def interpolate_at(times: np.ndarray, sample_t: np.ndarray, values: np.ndarray, max_gap: float

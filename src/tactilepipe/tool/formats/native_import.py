@@ -13,10 +13,10 @@ import numpy as np
 
 from tactilepipe.core.errors import InputError
 from tactilepipe.tool.formats.imagefile import read_image
-from tactilepipe.tool.formats.native_layout import DIGIT_SIZES, FRAME_NAME, SENSORS, TrialMeta, read_calibration, read_frame_index
+from tactilepipe.tool.formats.native_layout import (DIGIT_SIZES, FRAME_NAME, SENSORS, TrialMeta, calibrate,
+                                                     read_calibration, read_frame_index)
 from tactilepipe.tool.formats.raw import RawTrial, SensorFrames
 from tactilepipe.tool.formats.serial_log import read_serial_log
-from tactilepipe.tool.data.sync import calibrate
 
 
 def read_bgr(path: Path, record: str | None = None) -> np.ndarray:

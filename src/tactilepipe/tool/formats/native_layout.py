@@ -237,5 +237,11 @@ def _check_matrix(path: Path, matrix: np.ndarray) -> None:
                                    f"{unit} times {SPAN_FACTORS[0]:g}-{SPAN_FACTORS[1]:g})", f"UserAxis {axis}")
 
 
+def calibrate(counts: np.ndarray, matrix: np.ndarray, bias_counts: np.ndarray) -> np.ndarray:
+    """Forces/torques (n, 6) from gauge counts: F = C (v - v_bias)."""
+    volts = counts_to_volts(counts) - counts_to_volts(bias_counts)
+    return volts @ matrix.T
+
+
 def counts_to_volts(counts: np.ndarray) -> np.ndarray:
     return np.asarray(counts, np.float64) * (ADC_VOLTS / ADC_COUNTS) - ADC_ZERO_V
