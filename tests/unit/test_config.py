@@ -263,3 +263,10 @@ def test_nested_config_text_takes_the_type_params_yaml_has(raw_params):
     assert typed_like({"tool_train": {"lr": "1e-4"}}, raw_params) == {"tool_train": {"lr": 1e-4}}  # YAML 1.1 reads text
     assert typed_like({"tool_train": {"sweep": [{"depth": "34", "image_size": "8"}]}}, raw_params) == \
         {"tool_train": {"sweep": [{"depth": 34, "image_size": 8}]}}
+
+
+def test_an_override_keeps_only_the_keys_that_changed(raw_params):
+    from tactilepipe.core.config import changed_leaves
+    merged = {**raw_params, "folds": {**raw_params["folds"], "n_folds": 3}, "scale": "smoke"}   # as Snakemake merges
+    assert changed_leaves(merged, raw_params) == {"folds": {"n_folds": 3}, "scale": "smoke"}
+    assert changed_leaves(raw_params, raw_params) == {}

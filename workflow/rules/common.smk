@@ -9,7 +9,7 @@ import yaml
 
 from tactilepipe.pipeline import codedeps
 from tactilepipe.core.atomic import write_text
-from tactilepipe.core.config import declared, deep_merge, resolve, typed_like
+from tactilepipe.core.config import changed_leaves, declared, deep_merge, resolve, typed_like
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.volume.labels import read_session_labels
 from tactilepipe.volume.simulate import session_plan
@@ -27,7 +27,7 @@ with open("params.yaml") as _fh:
     _FILE_PARAMS = yaml.safe_load(_fh)
 config.update(typed_like(config, _FILE_PARAMS))
 # Overrides given with --config are handed to every CLI call, so each stage sees the same values.
-OVERRIDES = {k: v for k, v in config.items() if _FILE_PARAMS.get(k) != v}
+OVERRIDES = changed_leaves(config, _FILE_PARAMS)
 try:
     P = resolve(dict(config), "params.yaml (+ --config)", OVERRIDES)
 except TactilepipeError as exc:

@@ -37,6 +37,22 @@ def deep_merge(base: dict, overlay: dict) -> dict:
     return out
 
 
+def changed_leaves(values: dict, reference: dict) -> dict:
+    """The part of ``values`` that differs from ``reference``, group by group: an override of one
+    key of a group must not carry the group's other keys along (they would then override the
+    scale's overlay of them too)."""
+    out = {}
+    for key, value in values.items():
+        ref = reference.get(key) if isinstance(reference, dict) else None
+        if isinstance(value, dict) and isinstance(ref, dict):
+            sub = changed_leaves(value, ref)
+            if sub:
+                out[key] = sub
+        elif key not in (reference or {}) or ref != value:
+            out[key] = value
+    return out
+
+
 def typed_like(values: dict, reference: dict) -> dict:
     """``values`` with each text leaf read as YAML where ``reference`` (params.yaml) holds a value
     that is not text at the same place. Snakemake parses a ``--config`` value's top level but keeps
