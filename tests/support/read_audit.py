@@ -77,6 +77,13 @@ def _unescape(text: str) -> str:
         "utf-8", "replace")
 
 
+def stage_command(argv: list[str]) -> tuple[str, ...] | None:
+    """The stage and its arguments of a `python -m tactilepipe ...` command line (None: another)."""
+    if "-m" not in argv or argv[argv.index("-m") + 1:argv.index("-m") + 2] != ["tactilepipe"]:
+        return None
+    return tuple(argv[argv.index("-m") + 2:])
+
+
 def parse(log: Path) -> dict[int, Process]:
     """Processes of a strace log: parent, last command line, and the files opened for reading."""
     procs: dict[int, Process] = {}
@@ -116,8 +123,7 @@ def parse(log: Path) -> dict[int, Process]:
             # ["arg", ...], then the environment as /* N vars */: an argument may hold "]" itself
             args = rest[rest.index("[") + 1: rest.rindex("], ")] if "[" in rest and "], " in rest else ""
             argv = proc(pid).argv = [_unescape(s) for s in _STRING.findall(args)]
-            if "-m" in argv and argv[argv.index("-m") + 1:argv.index("-m") + 2] == ["tactilepipe"]:
-                proc(pid).stage = tuple(argv[argv.index("-m") + 2:])
+            proc(pid).stage = stage_command(argv) or proc(pid).stage
         elif call in ("open", "openat") and ret >= 0:
             strings = _STRING.findall(rest)
             flags = rest.split('",', 1)[-1]
@@ -201,7 +207,7 @@ def declared_jobs(root: Path, snakemake: list[str]) -> list[Job]:
         elif line.startswith("Shell command: ") and block and "-m tactilepipe" in line:
             tokens = shlex.split(line[len("Shell command: "):])
             tokens = tokens[:next((i for i, t in enumerate(tokens) if t.startswith((">", "2>", "&>", "|"))), len(tokens))]
-            jobs.append(Job(block["rule"], tuple(tokens[tokens.index("-m") + 2:]), block.get("input", set()),
+            jobs.append(Job(block["rule"], stage_command(tokens), block.get("input", set()),
                             block.get("output", set()) | block.get("log", set())))
             block = {}
     return jobs
@@ -213,15 +219,18 @@ def _covered(path: str, declared: set[str]) -> bool:
 
 def undeclared(reads: dict[tuple[str, ...], set[str]], jobs: list[Job]) -> dict[str, list[str]]:
     """``{"<rule> <command>": [undeclared files read]}`` over every job that ran under the trace."""
+    def declared(job: Job, f: str) -> bool:
+        inputs = job.inputs | {str(Path(i).parent) for i in job.inputs if SIMULATED_TRIAL.fullmatch(i)}
+        return (_covered(f, inputs) or _covered(f, job.outputs) or f in ALLOWED
+                or f.startswith(tuple(ALLOWED_PREFIXES)))
+    return _per_job(reads, jobs, declared)
+
+
+def _per_job(found: dict[tuple[str, ...], set[str]], jobs: list[Job], declared) -> dict[str, list[str]]:
+    """``{"<rule> <command>": [what the job's process used that declared(job, f) rejects]}``."""
     problems = {}
     for job in jobs:
-        read = reads.get(job.command)
-        if read is None:
-            continue
-        inputs = job.inputs | {str(Path(i).parent) for i in job.inputs if SIMULATED_TRIAL.fullmatch(i)}
-        bad = sorted(f for f in read
-                     if not _covered(f, inputs) and not _covered(f, job.outputs) and f not in ALLOWED
-                     and not f.startswith(tuple(ALLOWED_PREFIXES)))
+        bad = sorted(f for f in found.get(job.command, ()) if not declared(job, f))
         if bad:
             problems[f"{job.rule}: {' '.join(job.command)[:160]}"] = bad
     return problems
@@ -233,10 +242,9 @@ def stage_imports(audit_dir: Path, root: Path) -> dict[tuple[str, ...], set[str]
     root = root.resolve()
     for record in audit_dir.glob("*.json"):
         data = json.loads(record.read_text())
-        argv = data["orig_argv"] or data["argv"]
-        if "-m" not in argv or argv[argv.index("-m") + 1:argv.index("-m") + 2] != ["tactilepipe"]:
+        key = stage_command(data["orig_argv"] or data["argv"])
+        if key is None:
             continue
-        key = tuple(argv[argv.index("-m") + 2:])
         for f in data["modules"]:
             try:
                 out[key].add(Path(f).resolve().relative_to(root).as_posix())
@@ -247,15 +255,7 @@ def stage_imports(audit_dir: Path, root: Path) -> dict[tuple[str, ...], set[str]
 
 def undeclared_code(imports: dict[tuple[str, ...], set[str]], jobs: list[Job]) -> dict[str, list[str]]:
     """``{"<rule> <command>": [modules imported but not in the rule's declared code]}``."""
-    problems = {}
-    for job in jobs:
-        modules = imports.get(job.command)
-        if modules is None:
-            continue
-        bad = sorted(m for m in modules if m not in job.inputs and not m.startswith(PARSER_MODULES))
-        if bad:
-            problems[f"{job.rule}: {' '.join(job.command)[:160]}"] = bad
-    return problems
+    return _per_job(imports, jobs, lambda job, m: m in job.inputs or m.startswith(PARSER_MODULES))
 
 
 @dataclass

@@ -77,6 +77,11 @@ class SceneDiff:
     note: str = ""                      # why a scene is not compared (absent from a run)
 
     @property
+    def scored(self) -> bool:
+        """Scored over repeated draws: judged by those scores, its single values counted beside."""
+        return any(r.how != "single value" for r in self.rows)
+
+    @property
     def verdict(self) -> str:
         if self.note:
             return self.note
@@ -85,8 +90,7 @@ class SceneDiff:
             return "unchanged"
         # a scene scored over repeated draws is judged by those scores; its single values (derived
         # from the same models) are counted beside them. A scene without draws by its values.
-        scored = any(r.how != "single value" for r in self.rows)
-        judged = [r for r in moved if (r.how != "single value") == scored]
+        judged = [r for r in moved if (r.how != "single value") == self.scored]
         others = len(moved) - len(judged)
         signals = sorted((r for r in judged if r.verdict != "noise"),
                          key=lambda r: -(r.worse_by if not math.isnan(r.worse_by) else -1))
@@ -238,8 +242,7 @@ def failures(diffs: list[SceneDiff], tolerances: dict[str, float]) -> list[Row]:
     scene scored over draws is held to its scores (their means), not to single draws' values."""
     out = []
     for d in diffs:
-        scored = any(r.how != "single value" for r in d.rows)
-        out += [r for r in d.rows if (r.how != "single value") == scored
+        out += [r for r in d.rows if (r.how != "single value") == d.scored
                 and r.metric.rsplit(".", 1)[-1] in tolerances and not math.isnan(r.worse_by)
                 and r.worse_by > tolerances[r.metric.rsplit(".", 1)[-1]]]
     return out
@@ -263,8 +266,7 @@ def markdown(diffs: list[SceneDiff], old_name: str, new_name: str, show_same: bo
     for d in diffs:
         # a scene scored over draws lists its scores; the single values derived from the same
         # models (counted in the verdict) only with show_same
-        scored = any(r.how != "single value" for r in d.rows)
-        rows = [r for r in d.rows if show_same or (r.verdict != "same" and not (scored and r.how == "single value"))]
+        rows = [r for r in d.rows if show_same or (r.verdict != "same" and not (d.scored and r.how == "single value"))]
         if not rows:
             continue
         lines += ["", f"### {d.scene}", "", "| model | metric | old | new | change | verdict | judged by |",

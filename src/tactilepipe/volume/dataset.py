@@ -35,9 +35,9 @@ def read_shard(path: str | Path) -> dict:
     path = Path(path)
     slip_cols = [f"{c}{i}" for c in ("fz", "slip") for i in range(9)]
     try:
-        names = set(pq.read_schema(path).names)
-        table = pq.read_table(path, columns=["topic", "stamp_ns", "sensor", *FORCE_COLS, "tool_z",
-                                             *(c for c in slip_cols if c in names)])
+        shard = pq.ParquetFile(path)                # one open: the schema says which slip columns exist
+        table = shard.read(columns=["topic", "stamp_ns", "sensor", *FORCE_COLS, "tool_z",
+                                    *(c for c in slip_cols if c in shard.schema_arrow.names)])
     except Exception as exc:
         raise InputError(path, f"cannot read shard: {type(exc).__name__}: {exc}") from None
     df = table.to_pandas()
@@ -185,17 +185,24 @@ def session_lifts(sessions: list[str], raw_root: Path, shard_root: Path) -> pd.D
     return pd.DataFrame(rows)
 
 
+def _wrong_sign(rec: dict, axis: str, start: int, stop: int, noise: float, rest: int | None) -> list[str]:
+    """Each sensor whose median ``axis`` force off the table is clearly negative (10 x the rest
+    noise): measured above its level at rest (the first ``rest`` samples), or against zero."""
+    wrong = []
+    for s in (0, 1):
+        f = rec[f"f{axis}{s}"]
+        if not np.isfinite(f).any():
+            continue
+        level = float(np.median(f[start:stop]) - (np.median(f[:rest]) if rest else 0.0))
+        if level < -10 * noise:
+            wrong.append(f"sensor {s} (F{axis} {level:+.3f} N)")
+    return wrong
+
+
 def _check_fy_sign(rec: dict, start: int, stop: int, width: int, noise: float, path) -> None:
     """InputError naming each sensor whose Fy is clearly negative off the table (see the module
     docstring: the container's weight reads Fy > 0 on both)."""
-    wrong = []
-    for s in (0, 1):
-        fy = rec[f"fy{s}"]
-        if not np.isfinite(fy).any():
-            continue
-        level = float(np.median(fy[start:stop]) - np.median(fy[: max(2, width * 2)]))
-        if level < -10 * noise:
-            wrong.append(f"sensor {s} (Fy {level:+.3f} N)")
+    wrong = _wrong_sign(rec, "y", start, stop, noise, rest=max(2, width * 2))
     if wrong:
         raise InputError(path, f"Fy has the wrong sign while the container is lifted on {' and '.join(wrong)}: "
                                f"its weight must read Fy > 0 (docs/robustness.md); a reversed y axis? Map it in "
@@ -205,15 +212,8 @@ def _check_fy_sign(rec: dict, start: int, stop: int, width: int, noise: float, p
 def _check_fz_sign(rec: dict, start: int, stop: int, noise: float, path) -> None:
     """InputError naming each sensor whose grip force Fz is clearly negative off the table: the
     pads squeeze the container, which reads Fz > 0 on both (a grip that holds the container up
-    cannot be a pull). Absolute, not above rest: the grip may already be closed at rest."""
-    wrong = []
-    for s in (0, 1):
-        fz = rec[f"fz{s}"]
-        if not np.isfinite(fz).any():
-            continue
-        level = float(np.median(fz[start:stop]))
-        if level < -10 * noise:
-            wrong.append(f"sensor {s} (Fz {level:+.3f} N)")
+    cannot be a pull). Against zero, not above rest: the grip may already be closed at rest."""
+    wrong = _wrong_sign(rec, "z", start, stop, noise, rest=None)
     if wrong:
         raise InputError(path, f"the grip force Fz has the wrong sign while the container is lifted on "
                                f"{' and '.join(wrong)}: a grip must read Fz > 0 (docs/robustness.md); a reversed "
