@@ -209,7 +209,7 @@ def test_a_tool_model_trains_and_predicts_through_snakemake(smoke_build: Path):
                 str(smoke_build / "results/tool_normal/models/full/best.pt"), "--trial",
                 str(smoke_build / "raw/tool/sim-smoke/screwdriver_1_p00_normal00"), "--limit", "5"], smoke_build)
     lines = proc.stdout.strip().splitlines()
-    assert lines[0] == "pair,t_s,prediction_n,latency_ms" and len(lines) == 7 and "pairs/s" in lines[-1]
+    assert lines[0] == "pair,left_frame,right_frame,t_s,prediction_n,latency_ms" and len(lines) == 7 and "pairs/s" in lines[-1]
 
 
 def test_names_with_spaces_go_through_the_rules(tmp_path: Path):

@@ -31,5 +31,5 @@ def test_predict_streams_on_the_configured_threads_and_restores_them(tmp_path, m
     before = torch.get_num_threads()
     out = io.StringIO()
     summary = stream_predictions(tmp_path / "m.pt", trial, "native", p, limit=5, out=out)
-    assert summary["pairs"] == 5 and out.getvalue().startswith("pair,t_s,prediction_n,latency_ms")
+    assert summary["pairs"] == 5 and out.getvalue().startswith("pair,left_frame,right_frame,t_s,prediction_n,latency_ms")
     assert seen == [p["predict"]["num_threads"], before] and torch.get_num_threads() == before

@@ -242,5 +242,5 @@ def test_predict_streams_a_public_checkpoint_and_asks_for_its_force_range(tmp_pa
     out = io.StringIO()
     summary = stream_predictions(ckpt, trial, "public", p, out=out, label_range=(0.0, 30.0))
     lines = out.getvalue().splitlines()
-    assert summary["pairs"] == 3 and lines[0] == "pair,t_s,prediction_n,latency_ms" and len(lines) == 5
-    assert all(np.isfinite(float(line.split(",")[2])) for line in lines[1:4])
+    assert summary["pairs"] == 3 and lines[0] == "pair,left_frame,right_frame,t_s,prediction_n,latency_ms" and len(lines) == 5
+    assert all(np.isfinite(float(line.split(",")[4])) for line in lines[1:4])

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from tactilepipe.cli import compare, drift, study000, tool, volume
+from tactilepipe.cli import compare, drift, rig, study000, tool, volume
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.pipeline.scenes import TOOL_SCENES
 
@@ -47,7 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--session-meta", help="drift: the session's session.json (reference weight)")
     s.set_defaults(func=cmd_report)
 
-    for study in (volume, tool, study000, compare):   # drift has only `simulate drift` and `report drift`
+    for study in (volume, tool, study000, compare, rig):   # drift has only `simulate drift` and `report drift`
         study.add_parsers(sub, common, provenance)
     return parser
 

@@ -33,6 +33,7 @@ import pyarrow.parquet as pq
 from tactilepipe.core.atomic import atomic_path, open_memmap, write_json, write_parquet
 from tactilepipe.core.errors import InputError
 from tactilepipe.tool.data.ingest import read_shard_info
+from tactilepipe.tool.formats.native_layout import frame_orientation
 from tactilepipe.tool.formats.raw import SENSORS
 from tactilepipe.tool.data.sync import interpolate_at, pair_frames
 
@@ -49,7 +50,7 @@ def _decode(png: bytes, where: str) -> np.ndarray:
 def orientation(info: dict) -> str:
     """portrait, landscape or square, from the frame sizes a shard records (older shards: unknown)."""
     sizes = {tuple(v) for v in info.get("frame_size", {}).values()}
-    kinds = {"portrait" if h > w else "landscape" if w > h else "square" for w, h in sizes}
+    kinds = {frame_orientation(w, h) for w, h in sizes}
     return "/".join(sorted(kinds)) or "unknown"
 
 

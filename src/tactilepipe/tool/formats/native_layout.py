@@ -125,6 +125,12 @@ class TrialMeta:
         return cls(**raw)
 
 
+def frame_orientation(width: int, height: int) -> str:
+    """portrait, landscape or square: after the square resize a model only suits frames standing
+    the way its training frames stood."""
+    return "portrait" if height > width else "landscape" if width > height else "square"
+
+
 def check_tool_name(tool: str, where, record: str | None = None) -> None:
     """A tool's name becomes part of file and run names (results/<scene>/models/full_loto_<tool>):
     lowercase letters, digits and _ only, refused here rather than as a missing file later."""

@@ -52,8 +52,13 @@ def at_adc_rails(counts: np.ndarray) -> np.ndarray:
     return ((counts <= 0) | (counts >= ADC_COUNTS)).any(axis=1)
 
 
-def _parse_line(text: str) -> tuple[int, list[int]] | str:
-    """(arduino_ms, counts) or the reason the line is dropped."""
+GARBAGE = "garbage bytes"
+
+
+def parse_line(text: str) -> tuple[int, list[int]] | str:
+    """(arduino_ms, counts) of one sample line (its line end removed), or the reason it is dropped."""
+    if _GARBAGE.search(text):
+        return GARBAGE
     if not text.strip():
         return "empty line"
     parts = [p.strip() for p in text.strip().split(",")]
@@ -92,13 +97,10 @@ def read_serial_log(path: str | Path, max_drop_fraction: float = 0.2) -> SerialL
     times, counts, numbers, drops = [], [], [], Counter()
     ends_clean = data.endswith(b"\n")
     for number, text in enumerate(lines[1:], start=2):
-        if _GARBAGE.search(text):
-            drops["garbage bytes"] += 1
-            continue
-        parsed = _parse_line(text)
+        parsed = parse_line(text)
         if isinstance(parsed, str):
-            is_last = number == len(lines)
-            drops["truncated last line" if is_last and not ends_clean else parsed] += 1
+            cut = number == len(lines) and not ends_clean and parsed != GARBAGE
+            drops["truncated last line" if cut else parsed] += 1
             continue
         times.append(parsed[0])
         counts.append(parsed[1])

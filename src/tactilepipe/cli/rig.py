@@ -1,0 +1,111 @@
+"""`tactilepipe record` and `tactilepipe live`: the study-000 rig's two DIGITs and Arduino (docs/rig.md)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from tactilepipe.cli.common import stage_params
+
+CAMERA_HELP = "a /dev/video* node, the DIGIT's serial number (e.g. D20262), or a video file / image sequence " \
+              "(frame_%%06d.png) played at the mode's rate"
+
+
+def cmd_record(args) -> int | None:
+    from tactilepipe.rig.cameras import list_digits
+    if args.list_digits:
+        digits = list_digits()
+        for d in digits:
+            print(f"{d.serial}\t{d.node}\t{d.manufacturer} DIGIT rev {d.revision}")
+        if not digits:
+            print("no DIGIT found (is it plugged in, and is /sys/class/video4linux readable?)", file=sys.stderr)
+        return None
+    from tactilepipe.core.errors import ArgumentError
+    from tactilepipe.rig.cameras import resolve_source
+    from tactilepipe.rig.record import Devices, TrialIncomplete, install_calibration, next_trial_name, record_trial
+    from tactilepipe.tool.formats.native_layout import TrialMeta, check_tool_name
+    missing = [f"--{n.replace('_', '-')}" for n in ("session", "left", "right", "port", "tool", "kind", "seconds")
+               if getattr(args, n) is None]
+    if missing:
+        raise ArgumentError(f"record needs {', '.join(missing)} (or --list-digits)")
+    if args.trial and args.trials != 1:
+        raise ArgumentError("--trial names one trial; leave it out to record a series (--trials N)")
+    check_tool_name(args.tool, "--tool")
+    session = Path(args.session)
+    session.mkdir(parents=True, exist_ok=True)
+    install_calibration(session, Path(args.calibration) if args.calibration else None)
+    devices = Devices(resolve_source(args.left), resolve_source(args.right), args.port, args.mode, args.baud)
+    for k in range(args.trials):
+        name = args.trial or next_trial_name(session, f"{args.tool}_{args.kind}")
+        if not args.no_prompt:
+            print(f"trial {k + 1}/{args.trials}: {name}. Open the gripper or hold the tool without contact at "
+                  f"the tip (frame 0 is the zero-force reference), then press Enter (q Enter stops)",
+                  file=sys.stderr, flush=True)
+            if sys.stdin.readline().strip().lower() == "q":
+                break
+        meta = TrialMeta(trial=name, tool=args.tool, kind=args.kind, orientation_deg=args.orientation_deg,
+                         insertion_mm=args.insertion_mm)
+        try:
+            folder = record_trial(session, meta, devices, args.seconds)
+        except TrialIncomplete as exc:
+            print(f"tactilepipe record: {exc}", file=sys.stderr)
+            return 1
+        print(f"recorded {folder}", file=sys.stderr)
+    return None
+
+
+def cmd_live(args) -> int | None:
+    from tactilepipe.rig.cameras import resolve_source
+    from tactilepipe.rig.live import run_live
+    p = stage_params(args, "tool_ingest.image_size", "predict")
+    print("keep the fingers out of contact: the first frame pair is the zero-force reference"
+          if args.reference is None else f"reference pair from {args.reference}", file=sys.stderr)
+    summary = run_live(Path(args.checkpoint), (resolve_source(args.left), resolve_source(args.right)), args.mode, p,
+                       args.seconds, Path(args.log), Path(args.reference) if args.reference else None,
+                       args.label_range)
+    return 0 if summary.pairs else 1
+
+
+def add_parsers(sub, common, provenance) -> None:
+    from tactilepipe.rig.arduino import BAUD
+    from tactilepipe.rig.cameras import MODES
+    s = sub.add_parser("record", help="record trials in the rig's layout from two DIGITs and the Nano17's Arduino",
+                       description="Record one trial, or a series with a prompt between trials, into SESSION "
+                                   "(raw/tool/<session>/, the rig's layout: docs/rig.md). A trial that stops "
+                                   "half-way is set aside under raw/tool/incomplete/<session>/, never added.",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    s.add_argument("--list-digits", action="store_true", help="list the DIGITs plugged in (serial, node) and exit")
+    s.add_argument("--session", help="session folder, e.g. raw/tool/2026-11-26-screwdrivers")
+    s.add_argument("--left", help=f"left finger's camera: {CAMERA_HELP}")
+    s.add_argument("--right", help=f"right finger's camera: {CAMERA_HELP}")
+    s.add_argument("--mode", choices=list(MODES), default="qvga60", help="DIGIT stream mode (width x height @ fps)")
+    s.add_argument("--port", help="the Arduino's serial port, e.g. /dev/ttyACM0")
+    s.add_argument("--baud", type=int, default=BAUD, help="the firmware's baud rate")
+    s.add_argument("--calibration", help="the Nano17's ATI .cal file (copied into the session once)")
+    s.add_argument("--tool", help="tool name: lowercase letters, digits and _ (e.g. screwdriver_1)")
+    s.add_argument("--kind", choices=["normal", "shear"], help="pressing (normal) or sliding (shear) trials")
+    s.add_argument("--orientation-deg", type=float, default=0.0, help="tilt of the tool axis in the grasp")
+    s.add_argument("--insertion-mm", type=float, default=0.0,
+                   help="mm from the gel's fingertip edge to the butt end of the handle")
+    s.add_argument("--seconds", type=float, help="length of each trial")
+    s.add_argument("--trials", type=int, default=1, help="how many trials to record, with a prompt before each")
+    s.add_argument("--trial", help="the trial's name (default: <tool>_<kind>_<NNN>, the next free number)")
+    s.add_argument("--no-prompt", action="store_true", help="start each trial at once (no Enter)")
+    s.set_defaults(func=cmd_record)
+
+    s = sub.add_parser("live", parents=[common], help="estimate the tool force live from the two DIGITs",
+                       description="Load a trained checkpoint, take the zero-force reference pair, then estimate "
+                                   "the force for every frame pair the cameras deliver; print it with its latency "
+                                   "and log it (docs/rig.md).",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    s.add_argument("--checkpoint", required=True, help="e.g. results/tool_normal/models/full/best.pt")
+    s.add_argument("--left", required=True, help=f"left finger's camera: {CAMERA_HELP}")
+    s.add_argument("--right", required=True, help=f"right finger's camera: {CAMERA_HELP}")
+    s.add_argument("--mode", choices=list(MODES), default="qvga60", help="DIGIT stream mode")
+    s.add_argument("--seconds", type=float, default=60.0, help="how long to run")
+    s.add_argument("--log", default="live/estimates.csv", help="the log of (host_ns, frames, estimate, latency)")
+    s.add_argument("--reference", help="a reference.npz saved by an earlier run, instead of taking one at start")
+    s.add_argument("--label-range", nargs=2, type=float, metavar=("MIN_N", "MAX_N"),
+                   help="a public-code normal-force checkpoint: the force range its outputs were scaled to")
+    s.set_defaults(func=cmd_live)

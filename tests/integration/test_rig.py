@@ -1,0 +1,166 @@
+"""`tactilepipe record` and `tactilepipe live` against a stand-in rig made of real parts: the
+cameras are OpenCV VideoCaptures over image sequences of a simulated trial (the code path of a
+device, only the source string differs), the Arduino a separate process behind a real
+pseudo-terminal that pyserial opens (tests/support/standin_rig.py)."""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+
+from support.tool_data import quick_cfg
+from support.standin_rig import GARBAGE, StandInArduino, camera_sequences, write_plan
+from tactilepipe.core.config import load_params
+from tactilepipe.rig.cameras import from_layout
+from tactilepipe.tool.data.ingest import ingest_trial
+from tactilepipe.tool.formats.native_layout import SENSORS, read_frame_index, write_calibration
+from tactilepipe.tool.formats.trials import list_trials, open_trial
+from tactilepipe.tool.model.checkpoint import CHECKPOINT_FORMAT
+from tactilepipe.tool.model.network import build_model
+from tactilepipe.tool.model.stream import stream_predictions
+from tactilepipe.tool.sim.plan import TrialSpec, calibration_matrix
+from tactilepipe.tool.sim.trial import simulate_trial
+
+P = load_params()
+FPS = 30.0                      # the simulated DIGITs' rate: the stand-in plays it in mode qvga30
+SECONDS = 2.8                   # of the simulated trial's 100 frames (3.3 s)
+
+
+def _cli(*args: str, stdin: str = "") -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "tactilepipe", *args], capture_output=True, text=True,
+                          input=stdin, timeout=120)
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory):
+    """A simulated pressing trial as stand-in camera sequences and an Arduino plan."""
+    root = tmp_path_factory.mktemp("rig")
+    spec = TrialSpec("standin", "screwdriver_1", "normal", 0.0, 20.0, 0)
+    sim = simulate_trial(spec, P)
+    assert sim["meta"].camera_fps == FPS
+    write_plan(sim, root / "plan.npz")
+    write_calibration(root / "nano17.cal", calibration_matrix(P))
+    return {"root": root, "sim": sim, "sources": camera_sequences(sim, root / "cameras")}
+
+
+def _record(rig, session: Path, arduino: StandInArduino, *extra: str, sources=None,
+            stdin: str = "") -> subprocess.CompletedProcess:
+    sources = sources or rig["sources"]
+    return _cli("record", "--session", str(session), "--left", sources["digit_left"], "--right",
+                sources["digit_right"], "--port", arduino.port, "--mode", "qvga30", "--calibration",
+                str(rig["root"] / "nano17.cal"), "--tool", "screwdriver_1", "--kind", "normal",
+                "--orientation-deg", "0", "--insertion-mm", "20", *extra, stdin=stdin)
+
+
+def test_two_recorded_trials_ingest_with_every_drop_explained_and_the_clock_recovered(rig, tmp_path):
+    session = tmp_path / "raw" / "tool" / "lab-1"
+    with StandInArduino(rig["root"] / "plan.npz", tmp_path / "truth.jsonl") as arduino:
+        done = _record(rig, session, arduino, "--seconds", str(SECONDS), "--trials", "2", stdin="\n\n")
+        truths = arduino.records()
+    assert done.returncode == 0, done.stderr
+    assert "fps" in done.stderr and "|F|" in done.stderr            # the progress line
+    trials = list_trials(session)
+    assert [name for name, _, _ in trials] == ["screwdriver_1_normal_000", "screwdriver_1_normal_001"]
+    assert len(truths) == 2
+    tau = {s: (rig["sim"]["host_ns"][s] - rig["sim"]["t0_ns"]) / 1e9 for s in SENSORS}
+    for (name, path, fmt), truth in zip(trials, truths):
+        meta = json.loads((path / "meta.json").read_text())
+        rec = meta["notes"]["recorder"]
+        for s in SENSORS:
+            cam = rec["cameras"][s]
+            assert cam["dropped_frames"] == 0 and cam["read_timeouts"] == 0 and not cam["lost"]
+            assert cam["frames"] == len(read_frame_index(path / s)) >= int(SECONDS * FPS) - 2
+        log = (path / "force.log").read_bytes()
+        garbage = sum(log.count(g) for g in GARBAGE)
+        assert garbage > 0 and sum(rec["serial"]["unparsed_lines"].values()) == garbage
+        info = ingest_trial(open_trial(path, fmt), tmp_path / f"{name}.parquet", 32, P["tool_ingest"])
+        # every drop is one of the garbage lines the stand-in sent, by the parser's reasons
+        serial_drops = {k: v for k, v in info["drops"].items() if k.startswith("serial")}
+        assert sum(serial_drops.values()) == garbage, info["drops"]
+        assert sum(v for k, v in info["drops"].items() if not k.startswith("serial")) == 0, info["drops"]
+        # the clock: where millis 0 lies on the host clock, as the cameras saw the trial, against
+        # the offset ingest found from the images and the force alone
+        stamps = read_frame_index(path / "digit_left")
+        camera_origin_ns = np.median(stamps - tau["digit_left"][:len(stamps)] * 1e9)
+        start_host_ns = int(log.split(b"\n", 1)[0].split(b"=")[1])
+        true_shift_s = (camera_origin_ns + truth["tau_at_millis0"] * 1e9 - start_host_ns) / 1e9
+        found = info["clock"]["refined_shift_s"]
+        assert abs(found - true_shift_s) < 1 / FPS, (found, true_shift_s)
+
+
+def test_a_trial_that_loses_the_arduino_or_a_camera_is_set_aside(rig, tmp_path):
+    session = tmp_path / "raw" / "tool" / "lab-2"
+    with StandInArduino(rig["root"] / "plan.npz", tmp_path / "truth.jsonl", unplug_after_s=1.0) as arduino:
+        cut = _record(rig, session, arduino, "--seconds", str(SECONDS), "--no-prompt")
+    assert cut.returncode == 1
+    assert "stopped half-way" in cut.stderr and "serial port closed" in cut.stderr, cut.stderr
+    aside = tmp_path / "raw" / "tool" / "incomplete" / "lab-2" / "screwdriver_1_normal_000"
+    assert "serial port closed" in json.loads((aside / "meta.json").read_text())["notes"]["incomplete"]
+    assert not (session / "screwdriver_1_normal_000").exists()
+
+    short = tmp_path / "short"                   # a camera whose video ends after 20 frames
+    for s in SENSORS:
+        (short / s).mkdir(parents=True)
+        for k in range(20 if s == "digit_right" else 100):
+            (short / s / f"frame_{k:06d}.png").write_bytes(
+                (Path(rig["sources"][s].replace("%06d", f"{k:06d}"))).read_bytes())
+    with StandInArduino(rig["root"] / "plan.npz", tmp_path / "truth2.jsonl") as arduino:
+        ended = _record(rig, session, arduino, "--seconds", str(SECONDS), "--no-prompt",
+                        sources={s: str(short / s / "frame_%06d.png") for s in SENSORS})
+    assert ended.returncode == 1 and "camera digit_right" in ended.stderr and "the file ended" in ended.stderr
+    assert list((tmp_path / "raw" / "tool" / "incomplete" / "lab-2").iterdir())
+    assert not any(p.name.startswith("screwdriver") for p in session.iterdir())
+
+
+def _random_checkpoint(path: Path) -> Path:
+    """A model whose output moves with its input (a freshly built one predicts a constant: its
+    output layer starts at zero)."""
+    torch.manual_seed(3)
+    model = build_model("full", 18, 16, "sigmoid", 8)
+    with torch.no_grad():
+        for p in model.parameters():
+            if not p.any():
+                p.normal_(0, 0.1) if p.dim() > 1 else p.fill_(1.0)
+    meta = {"variant": "full", "depth": 18, "image_size": 16, "normalise": "minmax", "width": 8,
+            "gam_channel_gate": "sigmoid", "label_stats": {"min": 0.0, "max": 30.0, "mean": 5.0, "std": 5.0}}
+    cfg = dataclasses.asdict(quick_cfg(image_size=16, width=8))
+    torch.save({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "config": cfg, "meta": meta}, path)
+    return path
+
+
+def test_live_on_a_recorded_trial_gives_the_estimates_of_predict(rig, tmp_path):
+    session = tmp_path / "raw" / "tool" / "lab-3"
+    with StandInArduino(rig["root"] / "plan.npz", tmp_path / "truth.jsonl") as arduino:
+        done = _record(rig, session, arduino, "--seconds", "2.0", "--no-prompt")
+    assert done.returncode == 0, done.stderr
+    trial = session / "screwdriver_1_normal_000"
+    ckpt = _random_checkpoint(tmp_path / "model.pt")
+    replay = tmp_path / "replay"                 # the recorded frames, played back as the cameras stream
+    for s in SENSORS:
+        (replay / s).mkdir(parents=True)
+        for png in sorted((trial / s).glob("frame_*.png")):
+            cv2.imwrite(str(replay / s / png.name), from_layout(cv2.imread(str(png))))
+    out = io.StringIO()
+    stream_predictions(ckpt, trial, "native", P, out=out)
+    rows = [line for line in out.getvalue().splitlines() if not line.startswith("#")]
+    predicted = pd.read_csv(io.StringIO("\n".join(rows)))
+    live = _cli("live", "--checkpoint", str(ckpt), "--left", str(replay / "digit_left" / "frame_%06d.png"),
+                "--right", str(replay / "digit_right" / "frame_%06d.png"), "--mode", "qvga30", "--seconds", "30",
+                "--log", str(tmp_path / "live" / "estimates.csv"))
+    assert live.returncode == 0, live.stderr
+    logged = pd.read_csv(tmp_path / "live" / "estimates.csv")
+    both = logged.merge(predicted, on=["left_frame", "right_frame"])
+    assert len(both) >= 0.9 * (len(predicted) - 1), (len(both), len(predicted))
+    assert both["prediction_n"].std() > 1e-3        # the estimates move with the frames: 100x the tolerance below
+    np.testing.assert_allclose(both["estimate_n"], both["prediction_n"], atol=1e-5)
+    assert "frames skipped" in live.stdout and "stopped early" in live.stdout     # the replay ended
