@@ -51,6 +51,7 @@ bench: $(STAMP)  ## benchmarks, each printing ours next to the reference loop an
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_dvc.py
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_train_jobs.py
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_kernels.py
+	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_live.py
 
 pull: $(STAMP)  ## fetch shared results (dvc pull) and, once DVC finds them current by content, mark them so for Snakemake
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/dvc pull

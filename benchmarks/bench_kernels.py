@@ -3,9 +3,10 @@
 ``tool_train.kernels: portable`` trades speed for bytes that do not depend on the CPU
 (tool/model/kernels.py): no oneDNN, MKL's COMPATIBLE branch, ATen at AVX2, one thread. This prints
 what that costs, as frame pairs per second of training (forward, backward and Adam step on random
-data at the default scale's input size, batch and depth), at the default scale's width and the
-smoke scale's, each mode in its own process (the pins are read when torch loads), one thread
-each, one after the other.
+data at the default scale's input size, batch and depth), at the paper's width (64), the default
+scale's and the smoke scale's, each mode in its own process (the pins are read when torch loads),
+one thread each, one after the other. The width is the lever that let the default scale train
+portable: the rows show what each width costs in either mode.
 
 Usage: python benchmarks/bench_kernels.py [--steps 30]
 """
@@ -17,6 +18,7 @@ import multiprocessing as mp
 from pathlib import Path
 
 from tactilepipe.core.config import load_params
+from tactilepipe.tool.model.network import PAPER_WIDTH
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -34,9 +36,13 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=30)
     args = ap.parse_args()
     ctx = mp.get_context("spawn")
+    print("full model; each row at its scale's input size, depth, batch and width (the paper row: the "
+          "default scale's with the paper's width)")
     print(f"{'scale':8s} {'width':>5s} {'native pairs/s':>15s} {'portable pairs/s':>17s} {'portable / native':>18s}")
-    for scale in ("default", "smoke"):
-        tt = load_params(REPO / "params.yaml", {"scale": scale})["tool_train"]
+    default = load_params(REPO / "params.yaml")["tool_train"]
+    rows = [("paper", {**default, "width": PAPER_WIDTH}), ("default", default),
+            ("smoke", load_params(REPO / "params.yaml", {"scale": "smoke"})["tool_train"])]
+    for scale, tt in rows:
         spec = ("full", tt["depth"], tt["image_size"], tt["batch_size"], tt["gam_channel_gate"], tt["width"], args.steps)
         rates = {}
         for mode in ("native", "portable"):

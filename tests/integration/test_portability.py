@@ -100,3 +100,27 @@ def test_portable_kernels_refuse_more_than_one_thread(smoke_build: Path, tmp_pat
                           env={**ENV, "PYTHONPATH": str(smoke_build / "src")})
     assert proc.returncode == 2
     assert "num_threads 2 with kernels: portable" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def _predict(build: Path, kernels: str, env: dict) -> tuple[list[str], str]:
+    """The smoke full model's estimates on one simulated trial, by the real `predict` under ``env``;
+    and its summary line."""
+    trial = next(p for p in sorted((build / "raw/tool/sim-smoke").iterdir()) if p.name.endswith("normal00"))
+    cmd = [str(BIN / "tactilepipe"), "predict", "--scale", "smoke", "--override",
+           json.dumps({"predict": {"kernels": kernels}}), "--checkpoint", "results/tool_normal/models/full/best.pt",
+           "--trial", str(trial)]
+    inherited = {k: v for k, v in ENV.items() if k not in EMULATED_VARIABLES}
+    proc = subprocess.run(cmd, cwd=build, capture_output=True, text=True,
+                          env={**inherited, "PYTHONPATH": str(build / "src"), **env})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stdout.splitlines()
+    return [line.split(",")[4] for line in lines[1:-1]], lines[-1]
+
+
+@pytest.mark.slow
+def test_portable_predictions_are_the_same_on_emulated_cpus(smoke_build: Path):
+    base, summary = _predict(smoke_build, "portable", {})
+    assert "portable kernels" in summary and len(base) > 10 and len(set(base)) > 1
+    for name, env in EMULATIONS.items():
+        assert _predict(smoke_build, "portable", env)[0] == base, f"portable predict moved with {name} ({env})"
+    assert "native kernels" in _predict(smoke_build, "native", {})[1]

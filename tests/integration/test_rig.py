@@ -164,3 +164,46 @@ def test_live_on_a_recorded_trial_gives_the_estimates_of_predict(rig, tmp_path):
     assert both["prediction_n"].std() > 1e-3        # the estimates move with the frames: 100x the tolerance below
     np.testing.assert_allclose(both["estimate_n"], both["prediction_n"], atol=1e-5)
     assert "frames skipped" in live.stdout and "stopped early" in live.stdout     # the replay ended
+
+
+def test_a_recorded_session_runs_through_the_pipeline_with_no_step_by_hand(rig, tmp_path):
+    """Trials of two tools recorded from the stand-in, then the tool_normal scene at the smoke
+    scale by Snakemake alone: ingest, clock alignment, dataset, splits, every model, the reports."""
+    from support.project import copy_project, snakemake
+    wd = tmp_path / "project"
+    wd.mkdir()
+    copy_project(wd, scale="smoke")
+    session = wd / "raw" / "tool" / "lab-4"
+    with StandInArduino(rig["root"] / "plan.npz", tmp_path / "truth.jsonl") as arduino:
+        for tool in ("screwdriver_1", "spatula"):
+            done = _cli("record", "--session", str(session), "--left", rig["sources"]["digit_left"], "--right",
+                        rig["sources"]["digit_right"], "--port", arduino.port, "--mode", "qvga30", "--calibration",
+                        str(rig["root"] / "nano17.cal"), "--tool", tool, "--kind", "normal", "--seconds", "2.5",
+                        "--trials", "3", "--no-prompt")
+            assert done.returncode == 0, done.stderr
+    assert len(list_trials(session)) == 6
+    snakemake(wd, "results/tool_normal/metrics.json", "--config", 'tool_sessions=["lab-4"]', "scenes=[tool_normal]")
+    metrics = json.loads((wd / "results/tool_normal/metrics.json").read_text())
+    qc = (wd / "results/tool_normal/qc.md").read_text()
+    assert "spatula_normal_002" in qc and "screwdriver_1_normal_000" in qc
+    for variant in P["tool_train"]["variants"]:
+        assert np.isfinite(metrics[variant]["mae"]) and metrics[variant]["over_splits"]["mae"]["n"] == 2
+    assert metrics["loto"]["over_tools"]["mae"]["n"] == 2                 # each recorded tool left out once
+
+
+def test_a_port_that_prints_nothing_stops_before_any_trial_is_started(rig, tmp_path):
+    import os
+    import pty
+    master, slave = pty.openpty()                     # a serial port with nothing behind it
+    try:
+        session = tmp_path / "raw" / "tool" / "lab-5"
+        silent = _cli("record", "--session", str(session), "--left", rig["sources"]["digit_left"], "--right",
+                      rig["sources"]["digit_right"], "--port", os.ttyname(slave), "--mode", "qvga30",
+                      "--calibration", str(rig["root"] / "nano17.cal"), "--tool", "knife", "--kind", "normal",
+                      "--seconds", "1", "--no-prompt")
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert silent.returncode == 1 and "no sample line within 3 s of opening the port" in silent.stderr, silent.stderr
+    assert not (tmp_path / "raw" / "tool" / "incomplete").exists()
+    assert not list((tmp_path / "raw" / "tool" / ".recording" / "lab-5").iterdir())

@@ -58,7 +58,9 @@ def cmd_record(args) -> int | None:
 def cmd_live(args) -> int | None:
     from tactilepipe.rig.cameras import resolve_source
     from tactilepipe.rig.live import run_live
+    from tactilepipe.tool.model.stream import prepare_process
     p = stage_params(args, "tool_ingest.image_size", "predict")
+    prepare_process(p)                               # before torch loads: the portable pins are read then
     print("keep the fingers out of contact: the first frame pair is the zero-force reference"
           if args.reference is None else f"reference pair from {args.reference}", file=sys.stderr)
     summary = run_live(Path(args.checkpoint), (resolve_source(args.left), resolve_source(args.right)), args.mode, p,

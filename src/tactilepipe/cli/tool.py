@@ -86,8 +86,9 @@ def cmd_tool_report(args) -> None:
 
 
 def cmd_predict(args) -> None:
-    from tactilepipe.tool.model.stream import stream_predictions
+    from tactilepipe.tool.model.stream import prepare_process, stream_predictions
     p = stage_params(args, "tool_ingest.ros_topics", "tool_ingest.image_size", "predict")
+    prepare_process(p)                               # before torch loads: the portable pins are read then
     stream_predictions(Path(args.checkpoint), Path(args.trial), args.format, p, limit=args.limit,
                        label_range=args.label_range)
 

@@ -169,7 +169,8 @@ class Camera:
 
     def stop(self) -> CameraStats:
         self._stop.set()
-        self._thread.join()
+        if self._thread.ident is not None:         # started
+            self._thread.join()
         self._cap.release()
         return self.stats
 

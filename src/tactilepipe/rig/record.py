@@ -127,18 +127,22 @@ def record_trial(session_dir: str | Path, meta: TrialMeta, devices: Devices, sec
     for sensor in SENSORS:
         (staging / sensor).mkdir(parents=True)
     writer = _FrameWriter(staging)
-    cameras, reader, reason = [], None, ""
+    cameras, reader, reason, setup_error = [], None, "", None
     log = open(staging / "force.log", "wb")
     try:
         reader = ArduinoReader(devices.port, log, devices.baud).start()
         _first_sample(reader)           # the Arduino is up: every frame will lie within the force log
         for sensor, source in zip(SENSORS, (devices.left, devices.right)):
             cameras.append(Camera(sensor, source, devices.mode,
-                                  lambda i, t, f, s=sensor: writer.put(s, i, t, f)).start())
+                                  lambda i, t, f, s=sensor: writer.put(s, i, t, f)))
+        for camera in cameras:
+            camera.start()
         reason = _watch(cameras, reader, read_calibration(session_dir / "nano17.cal"), seconds, out)
     except KeyboardInterrupt:
         reason = "stopped by the user (Ctrl-C)"
     except TactilepipeError as exc:
+        if not any(c.running or c.stats.frames for c in cameras):
+            setup_error = exc               # a device that would not open: nothing was recorded
         reason = str(exc)
     finally:
         camera_stats = {c.name: c.stop().as_dict() for c in cameras}
@@ -148,6 +152,9 @@ def record_trial(session_dir: str | Path, meta: TrialMeta, devices: Devices, sec
             writer.close()
         except BaseException as exc:                # noqa: BLE001 - the trial is set aside, with why
             reason = reason or f"writing frames failed: {exc}"
+    if setup_error is not None:
+        shutil.rmtree(staging)
+        raise setup_error
     for sensor in SENSORS:
         stamps = writer.stamps[sensor]
         write_text(staging / sensor / "frames.csv",

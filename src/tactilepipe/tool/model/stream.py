@@ -23,7 +23,7 @@ from typing import Iterator
 import cv2
 import numpy as np
 
-from tactilepipe.core.errors import InputError
+from tactilepipe.core.errors import ConfigError, InputError
 from tactilepipe.tool.formats.trials import open_trial
 from tactilepipe.tool.data.ingest import preprocess
 from tactilepipe.tool.data.sync import pair_frames
@@ -67,20 +67,34 @@ class PairEstimator:
         return float(np.asarray(self._denormalise(y, self.meta["label_stats"], self.meta["normalise"])).reshape(-1)[0])
 
 
+def prepare_process(p: dict) -> None:
+    """The process settings of params.yaml ``predict`` that OpenMP, MKL and ATen read when torch
+    first loads: its wait policy and the kernels. Effective when a command calls this before torch
+    is imported (the CLI does); a later call keeps native kernels, and refuses portable ones that
+    are not in force."""
+    from tactilepipe.tool.model.kernels import use_kernels
+    os.environ["OMP_WAIT_POLICY"] = p["predict"]["wait_policy"].upper()
+    if p["predict"]["kernels"] == "portable" and p["predict"]["num_threads"] != 1:
+        raise ConfigError(f"predict.num_threads {p['predict']['num_threads']} with kernels: portable, which runs "
+                          f"on one thread")
+    use_kernels(p["predict"]["kernels"])
+
+
 @contextmanager
 def estimator(checkpoint: Path, p: dict, label_range=None) -> Iterator[PairEstimator]:
-    """A PairEstimator of ``checkpoint`` on the threads of params.yaml ``predict`` (restored after).
+    """A PairEstimator of ``checkpoint`` on the threads and kernels of params.yaml ``predict``
+    (the caller's thread count is restored after).
 
     A checkpoint of the public code (best_model_*.pth) runs at the ingest size; its normal-force
     outputs need ``label_range`` (min, max in N), which it does not record."""
-    # OpenMP reads its wait policy when torch first loads it: effective when the command starts
-    # the process (the CLI), not when torch was already imported by the caller
-    os.environ["OMP_WAIT_POLICY"] = p["predict"]["wait_policy"].upper()
+    prepare_process(p)
     import torch
     from tactilepipe.tool.model.inference import load_model
+    from tactilepipe.tool.model.kernels import require_active
     saved_threads = torch.get_num_threads()
     torch.set_num_threads(p["predict"]["num_threads"])
     try:
+        require_active(p["predict"]["kernels"])
         model, meta = load_model(checkpoint, image_size=p["tool_ingest"]["image_size"])
         if meta["label_stats"] is None:                # a public-code checkpoint
             meta = {**meta, "label_stats": _public_label_stats(checkpoint, meta, label_range)}
@@ -135,7 +149,8 @@ def _stream(est: PairEstimator, trial, fmt, p, limit, out) -> dict:
     summary = {"pairs": len(preds), "median_latency_ms": float(np.median(latencies)),
                "sustained_pairs_per_s": len(preds) / wall}
     print(f"# {summary['pairs']} frame pairs, median latency {summary['median_latency_ms']:.1f} ms, "
-          f"sustained {summary['sustained_pairs_per_s']:.1f} pairs/s (decode + preprocess + model)", file=out)
+          f"sustained {summary['sustained_pairs_per_s']:.1f} pairs/s (decode + preprocess + model), "
+          f"{p['predict']['kernels']} kernels", file=out)
     return summary
 
 
