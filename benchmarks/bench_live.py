@@ -9,11 +9,12 @@ default full model (results/tool_normal/models/full/best.pt when it exists, else
 one of the same shape: speed does not depend on the weights). Target: the camera rate in pairs
 per second, and at least 30 pairs/s under load, as `predict` gives.
 
-Usage: python benchmarks/bench_live.py
+Usage: python benchmarks/bench_live.py [--checkpoint results/tool_normal/models/full/best.pt]
 """
 
 from __future__ import annotations
 
+import argparse
 import re
 import subprocess
 import sys
@@ -51,6 +52,10 @@ def live_run(checkpoint: Path, sources: dict, log: Path, loaded: bool) -> dict:
 
 
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--checkpoint", default=str(REPO / "results/tool_normal/models/full/best.pt"),
+                    help="the model to run (default: the default scene's full model, when built)")
+    args = ap.parse_args()
     p = load_params(REPO / "params.yaml")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -67,7 +72,7 @@ def main() -> None:
             for k in range(FRAMES):
                 cv2.imwrite(str(out / f"frame_{k:06d}.png"), from_layout(cv2.imread(str(frames[k % len(frames)]))))
             sources[sensor] = str(out / "frame_%06d.png")
-        checkpoint = REPO / "results/tool_normal/models/full/best.pt"
+        checkpoint = Path(args.checkpoint)
         if not checkpoint.exists():
             checkpoint = untrained_checkpoint(p, tmp / "untrained.pt")
         fps = MODES[MODE][2]

@@ -132,7 +132,8 @@ def run_live(checkpoint: Path, sources: tuple[str, str], mode: str, p: dict, sec
                     computes.append(compute)
                     print(f"{host_ns},{i},{j},{value:.6f},{latency:.2f},{compute:.2f}", file=log)
                     print(f"{value:8.3f} N   latency {latency:6.1f} ms", file=out, flush=True)
-                wall = time.monotonic() - start
+                    last = time.monotonic()
+                wall = (last if latencies else time.monotonic()) - start     # to the last estimate
         finally:
             for c in cameras:
                 c.stop()
