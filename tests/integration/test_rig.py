@@ -182,7 +182,8 @@ def test_a_recorded_session_runs_through_the_pipeline_with_no_step_by_hand(rig, 
                         "--trials", "3", "--no-prompt")
             assert done.returncode == 0, done.stderr
     assert len(list_trials(session)) == 6
-    snakemake(wd, "results/tool_normal/metrics.json", "--config", 'tool_sessions=["lab-4"]', "scenes=[tool_normal]")
+    snakemake(wd, "results/tool_normal/metrics.json", "results/tool_normal/qc.md", "--config",
+              'tool_sessions=["lab-4"]', "scenes=[tool_normal]")
     metrics = json.loads((wd / "results/tool_normal/metrics.json").read_text())
     qc = (wd / "results/tool_normal/qc.md").read_text()
     assert "spatula_normal_002" in qc and "screwdriver_1_normal_000" in qc
@@ -204,6 +205,6 @@ def test_a_port_that_prints_nothing_stops_before_any_trial_is_started(rig, tmp_p
     finally:
         os.close(master)
         os.close(slave)
-    assert silent.returncode == 1 and "no sample line within 3 s of opening the port" in silent.stderr, silent.stderr
+    assert silent.returncode == 2 and "no sample line within 3 s of opening the port" in silent.stderr, silent.stderr
     assert not (tmp_path / "raw" / "tool" / "incomplete").exists()
     assert not list((tmp_path / "raw" / "tool" / ".recording" / "lab-5").iterdir())
