@@ -69,9 +69,14 @@ def cmd_live(args) -> int | None:
     return 0 if summary.pairs else 1
 
 
+# Written out here, not imported: every CLI call builds every parser, and a pipeline stage must not
+# load the rig's modules (OpenCV capture, pyserial). tests/unit/test_rig_devices.py keeps both in
+# step with rig/cameras.py and rig/arduino.py.
+MODE_NAMES = ("qvga60", "qvga30", "vga30", "vga15")
+DEFAULT_BAUD = 115200
+
+
 def add_parsers(sub, common, provenance) -> None:
-    from tactilepipe.rig.arduino import BAUD
-    from tactilepipe.rig.cameras import MODES
     s = sub.add_parser("record", help="record trials in the rig's layout from two DIGITs and the Nano17's Arduino",
                        description="Record one trial, or a series with a prompt between trials, into SESSION "
                                    "(raw/tool/<session>/, the rig's layout: docs/rig.md). A trial that stops "
@@ -81,9 +86,9 @@ def add_parsers(sub, common, provenance) -> None:
     s.add_argument("--session", help="session folder, e.g. raw/tool/2026-11-26-screwdrivers")
     s.add_argument("--left", help=f"left finger's camera: {CAMERA_HELP}")
     s.add_argument("--right", help=f"right finger's camera: {CAMERA_HELP}")
-    s.add_argument("--mode", choices=list(MODES), default="qvga60", help="DIGIT stream mode (width x height @ fps)")
+    s.add_argument("--mode", choices=MODE_NAMES, default="qvga60", help="DIGIT stream mode (width x height @ fps)")
     s.add_argument("--port", help="the Arduino's serial port, e.g. /dev/ttyACM0")
-    s.add_argument("--baud", type=int, default=BAUD, help="the firmware's baud rate")
+    s.add_argument("--baud", type=int, default=DEFAULT_BAUD, help="the firmware's baud rate")
     s.add_argument("--calibration", help="the Nano17's ATI .cal file (copied into the session once)")
     s.add_argument("--tool", help="tool name: lowercase letters, digits and _ (e.g. screwdriver_1)")
     s.add_argument("--kind", choices=["normal", "shear"], help="pressing (normal) or sliding (shear) trials")
@@ -104,7 +109,7 @@ def add_parsers(sub, common, provenance) -> None:
     s.add_argument("--checkpoint", required=True, help="e.g. results/tool_normal/models/full/best.pt")
     s.add_argument("--left", required=True, help=f"left finger's camera: {CAMERA_HELP}")
     s.add_argument("--right", required=True, help=f"right finger's camera: {CAMERA_HELP}")
-    s.add_argument("--mode", choices=list(MODES), default="qvga60", help="DIGIT stream mode")
+    s.add_argument("--mode", choices=MODE_NAMES, default="qvga60", help="DIGIT stream mode")
     s.add_argument("--seconds", type=float, default=60.0, help="how long to run")
     s.add_argument("--log", default="live/estimates.csv", help="the log of (host_ns, frames, estimate, latency)")
     s.add_argument("--reference", help="a reference.npz saved by an earlier run, instead of taking one at start")
