@@ -14,7 +14,6 @@ lines that parser would drop, by reason, for the trial's meta.json and the progr
 
 from __future__ import annotations
 
-import threading
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -23,6 +22,7 @@ from typing import BinaryIO
 import numpy as np
 
 from tactilepipe.core.errors import InputError
+from tactilepipe.rig.reader import DeviceReader
 from tactilepipe.tool.formats.native_layout import calibrate
 from tactilepipe.tool.formats.serial_log import parse_line
 
@@ -47,7 +47,7 @@ class SerialStats:
                 "stalls": self.stalls, "lost": self.lost, "start_host_ns": self.start_host_ns}
 
 
-class ArduinoReader:
+class ArduinoReader(DeviceReader):
     """Opens ``port`` (stamping ``# start_host_ns``), then copies its lines to ``log`` on a thread."""
 
     def __init__(self, port: str, log: BinaryIO, baud: int = BAUD):
@@ -61,22 +61,10 @@ class ArduinoReader:
         self._log = log
         self._log.write(f"# start_host_ns={self.stats.start_host_ns}\n".encode())
         self.port = port
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="arduino", daemon=True)
+        self._init_thread("arduino")
 
-    def start(self) -> "ArduinoReader":
-        self._thread.start()
-        return self
-
-    def stop(self) -> SerialStats:
-        self._stop.set()
-        self._thread.join()
+    def _close(self) -> None:
         self._port.close()
-        return self.stats
-
-    @property
-    def running(self) -> bool:
-        return self._thread.is_alive()
 
     def force(self, matrix: np.ndarray) -> np.ndarray | None:
         """The last sample's (Fx, Fy, Fz) in N against the trial's first sample (a trial starts

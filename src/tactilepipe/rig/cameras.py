@@ -21,7 +21,6 @@ the same code as from a device; only the source string differs.
 from __future__ import annotations
 
 import re
-import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +29,7 @@ import cv2
 import numpy as np
 
 from tactilepipe.core.errors import ArgumentError, InputError
+from tactilepipe.rig.reader import DeviceReader
 
 SYSFS_VIDEO = Path("/sys/class/video4linux")
 DIGIT_PRODUCT = "DIGIT"
@@ -143,7 +143,7 @@ class CameraStats:
 
 
 @dataclass
-class Camera:
+class Camera(DeviceReader):
     """One camera read on its own thread: each frame, turned into the layout's orientation, is
     handed to ``on_frame(index, host_ns, frame)`` with the host time (ns since 1970) at which the
     read returned it. Gaps in those times longer than 1.5 periods are counted as dropped frames."""
@@ -154,29 +154,16 @@ class Camera:
     stats: CameraStats = field(default_factory=CameraStats)
 
     def __post_init__(self):
-        self._stop = threading.Event()
         self._cap = open_capture(self.source, self.mode)
         self.stats.opened_host_ns = time.time_ns()
-        self._thread = threading.Thread(target=self._run, name=f"camera-{self.name}", daemon=True)
+        self._init_thread(f"camera-{self.name}")
 
     @property
     def period_s(self) -> float:
         return 1.0 / MODES[self.mode][2]
 
-    def start(self) -> "Camera":
-        self._thread.start()
-        return self
-
-    def stop(self) -> CameraStats:
-        self._stop.set()
-        if self._thread.ident is not None:         # started
-            self._thread.join()
+    def _close(self) -> None:
         self._cap.release()
-        return self.stats
-
-    @property
-    def running(self) -> bool:
-        return self._thread.is_alive()
 
     def _run(self) -> None:
         period_ns = int(self.period_s * 1e9)
