@@ -124,11 +124,8 @@ def test_paper_dry_run_prints_the_estimate_and_builds_nothing(tmp_path):
     assert re.search(r"(?m)^tool_train\s+54\s+\d+\s+1\s+32\.0GB\s+48\.0 h", out)
     # every training job asks for a GPU; the 224-px data is planned, never written
     assert re.search(r"rule tool_train:(?:\n    .*)*\n    resources: .*gpu=1", out)
-    # nothing built: no recordings, and no results but the rules' parameter stamps (written as the
-    # workflow is read, so that a changed parameter is seen even without Snakemake's records)
-    assert not (wd / "raw").exists()
-    assert sorted(p.relative_to(wd).parent.as_posix() for p in (wd / "results").rglob("*") if p.is_file()) == \
-        ["results/params"] * len(list((wd / "results/params").glob("*.json")))
+    # a dry run writes nothing: no recordings, no results, not even the rules' parameter stamps
+    assert not (wd / "raw").exists() and not (wd / "results").exists()
     # a smoke-scale dry run books no GPU
     smoke = run([str(BIN / "snakemake"), "-n", "--cores", "2", "--config", "scale=smoke"], wd).stdout
     assert re.search(r"(?m)^tool_train\s+24\s+\d+\s+0\s", smoke) and "gpu=1" not in smoke   # 2 x (4 x 2 + 3 + 1)

@@ -24,7 +24,7 @@ pytestmark = pytest.mark.integration
 
 def linked_copy(src: Path, dest: Path) -> Path:
     """A copy of a built project in which every file is a hard link (same bytes and file times, no
-    data copied). For dry runs only: what they write (parameter stamps, Snakemake's records) is
+    data copied). For dry runs only: what they write (Snakemake's records) is
     written to a temporary and renamed, which replaces the link, but a job writing in place would
     change both copies."""
     shutil.copytree(src, dest, symlinks=True, copy_function=os.link)
@@ -117,7 +117,7 @@ def test_second_run_has_nothing_to_do(smoke_build: Path):
 
 
 def test_changing_a_model_parameter_reruns_only_what_depends_on_it(smoke_build: Path, tmp_path: Path):
-    wd = linked_copy(smoke_build, tmp_path / "wd")       # the dry run rewrites a parameter stamp
+    wd = linked_copy(smoke_build, tmp_path / "wd")       # params.yaml is edited below
     params = wd / "params.yaml"
     original = params.read_text()
     assert "  mu_min: 0.1\n" in original
@@ -129,7 +129,7 @@ def test_changing_a_model_parameter_reruns_only_what_depends_on_it(smoke_build: 
 
 
 def test_a_nested_config_override_is_typed_as_params_yaml_has_it(smoke_build: Path, tmp_path: Path):
-    wd = linked_copy(smoke_build, tmp_path / "wd")       # the dry run rewrites parameter stamps
+    wd = linked_copy(smoke_build, tmp_path / "wd")       # dry runs only: a copy keeps the shared build out of reach
     out = snakemake(wd, "-n", "--config", "scale=smoke", 'folds={"n_folds": 3}')
     planned = set(re.findall(r"^(?:local)?rule (\w+):$", out.stdout, flags=re.M)) - {"all"}
     assert "volume_split" in planned and "ingest_papillarray" not in planned, planned   # n_folds 3, an integer
@@ -235,3 +235,40 @@ def test_names_with_spaces_go_through_the_rules(tmp_path: Path):
     assert (wd / "results/logs/ingest_tool/real rig/Trial 1.log").exists()
     stray = [p.name for p in (wd / "results/logs").rglob("*") if p.is_file() and p.name in ("0", "ml.log", "1.log")]
     assert stray == []
+
+
+def _ran(proc) -> set[str]:
+    """The rules whose jobs a Snakemake run (or dry run) printed, `all` left out."""
+    return set(re.findall(r"^(?:local)?rule (\w+):$", proc.stdout + proc.stderr, flags=re.M)) - {"all"}
+
+
+def test_a_dry_run_writes_nothing_and_a_scale_round_trip_reruns_only_what_changed(smoke_build: Path, tmp_path: Path):
+    """Two smoke-sized overlays (the second simulates the container faster, so its volume data and
+    everything after differ): a dry run of the other leaves git clean; going there and back re-runs
+    the results they share, never the first overlay's own recordings and shards, and ends with the
+    same numbers as before."""
+    wd = shutil.copytree(smoke_build, tmp_path / "wd", symlinks=True)
+    shutil.copy(REPO / ".gitignore", wd / ".gitignore")
+    params = yaml.safe_load((wd / "params.yaml").read_text())
+    other = {**params["scales"]["smoke"]}
+    other["simulate_volume"] = {**other["simulate_volume"], "rate_hz": 250}
+    params["scales"]["smoke_b"] = other
+    (wd / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
+    for cmd in (["init", "-q"], ["add", "-A"], ["-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "built"]):
+        run(["git", *cmd], wd)
+    before = (wd / "results/volume/metrics.json").read_bytes()
+    volume = ["--config", "scenes=[volume]"]
+
+    dry = snakemake(wd, "-n", *volume, "scale=smoke_b")
+    assert {"simulate_volume", "volume_dataset", "volume_report"} <= _ran(dry)
+    assert "changed-params/cmd_simulate_volume.json" in dry.stdout + dry.stderr     # the reason names the stamp
+    assert run(["git", "status", "--porcelain"], wd).stdout == ""
+    assert _ran(snakemake(wd, "-n", *volume, "scale=smoke")) == set()
+
+    there = snakemake(wd, *volume, "scale=smoke_b")
+    assert {"simulate_volume", "ingest_papillarray", "volume_report"} <= _ran(there)
+    back = _ran(snakemake(wd, *volume, "scale=smoke"))
+    assert {"volume_dataset", "volume_report"} <= back
+    assert not back & {"simulate_volume", "ingest_papillarray"}, back      # sim-smoke's bags and shards stand
+    assert (wd / "results/volume/metrics.json").read_bytes() == before
+    assert _ran(snakemake(wd, "-n", *volume, "scale=smoke")) == set()

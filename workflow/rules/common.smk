@@ -1,4 +1,5 @@
 # Shared set-up: the validated parameters, how rules call the CLI, and which files a scene needs.
+import atexit
 import json
 import shlex
 import sys
@@ -64,21 +65,87 @@ def _plain(params):
     return json.loads(json.dumps(params))
 
 
+_STAMP_GRAPH_KEYS = {}
+
+
 def param_stamp(stage, *graph_keys):
-    """results/params/<stage>.json: the values of the parameters the CLI stage declares (its only
-    way in) and of ``graph_keys``, the ones the rules read to decide which jobs exist or what their
-    commands say. An input of the rule, rewritten only when the values change: a change then
+    """An input function giving results/params/<stage>.json: the values of the parameters the CLI
+    stage declares (its only way in) and of ``graph_keys``, the ones the rules read to decide which
+    jobs exist or what their commands say. Rewritten only when the values change: a change then
     re-runs the rule by file time, also where Snakemake has no record of earlier runs (a fresh
     clone, a new machine), which its params trigger needs. Versioned by git beside the metrics;
-    the dvc.yaml generator reads the stage and the keys from it."""
+    the dvc.yaml generator reads the stage and the keys from it.
+
+    Evaluated when the graph is built, not when the Snakefile is read, because only then does
+    Snakemake say whether this is a dry run: a dry run must not rewrite a tracked stamp, so a
+    changed one is written to a scratch folder outside the project instead. Its newer time plans
+    the same re-run, and Snakemake's reason names it (``changed-params/<stage>.json``)."""
+    if _STAMP_GRAPH_KEYS.setdefault(stage, graph_keys) != graph_keys:
+        raise WorkflowError(f"param_stamp('{stage}') is declared with two different sets of graph keys")
+    return lambda wildcards: stamp_file(stage)
+
+
+def _stamp_text(stage):
     keys = codedeps.stage_param_keys(stage)
+    graph_keys = _STAMP_GRAPH_KEYS.get(stage, ())
     stamp = {"stage": stage, "declared": list(keys), "graph": list(graph_keys),
              "values": deep_merge(_plain(declared(P, keys, stage)), _plain(declared(P, graph_keys, "workflow")))}
+    return json.dumps(stamp, indent=1, sort_keys=True) + "\n"
+
+
+@cache
+def stamp_file(stage):
+    """The stamp of ``stage`` as this run sees it (see param_stamp): the tracked file, written when
+    its values changed, or in a dry run a scratch copy holding the new values."""
     path = Path(PARAM_STAMPS) / f"{stage}.json"
-    text = json.dumps(stamp, indent=1, sort_keys=True) + "\n"
-    if not path.is_file() or path.read_text() != text:
-        write_text(path, text)
+    text = _stamp_text(stage)
+    old = path.read_text() if path.is_file() else None
+    if old == text:
+        return str(path)
+    print(f"{path}: {_stamp_change(old, text)}", file=sys.stderr, flush=True)
+    if workflow.dryrun:
+        path = Path(_dry_run_scratch()) / "changed-params" / f"{stage}.json"
+        path.parent.mkdir(parents=True, exist_ok=True)
+    write_text(path, text)
+    _tell_snakemake_it_exists(path)
     return str(path)
+
+
+def _tell_snakemake_it_exists(path):
+    # Snakemake lists a folder once per start and believes the listing: a stamp written after its
+    # folder was listed would otherwise be a missing input (pinned Snakemake's IOCache)
+    if workflow.iocache.active:
+        workflow.iocache.exists_local[str(path)] = True
+
+
+def _stamp_change(old, new):
+    """What changed between two stamps' values, key by key (why the rules that read them re-run)."""
+    if old is None:
+        return "new parameter stamp"
+    try:
+        before = json.loads(old)["values"]
+    except (ValueError, KeyError):
+        return "unreadable stamp, rewritten"
+    after = json.loads(new)["values"]
+
+    def leaves(node, prefix=""):
+        if isinstance(node, dict):
+            return {k: v for key, sub in node.items() for k, v in leaves(sub, f"{prefix}{key}.").items()}
+        return {prefix[:-1]: node}
+
+    a, b = leaves(before), leaves(after)
+    changes = [f"{k} {json.dumps(a.get(k))} -> {json.dumps(b.get(k))}" for k in sorted(a.keys() | b.keys())
+               if a.get(k, ...) != b.get(k, ...)]
+    return "parameters changed: " + "; ".join(changes) if changes else "declared keys changed"
+
+
+@cache
+def _dry_run_scratch():
+    import shutil
+    import tempfile
+    folder = tempfile.mkdtemp(prefix="tactilepipe-dry-run-")
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    return folder
 
 
 def rule_resources(rule):
@@ -100,8 +167,6 @@ def _print_estimate_after_dry_run():
         from tactilepipe.pipeline.estimate import estimate_report
         print(estimate_report(P, jobs, run_spec=globals().get("run_spec")), flush=True)
 
-
-import atexit
 
 atexit.register(_print_estimate_after_dry_run)
 
@@ -209,7 +274,7 @@ def provenance_inputs(scene):
     inputs whether or not a session is simulated, so that the graph (and dvc.yaml) does not
     change with the kind of session named in params.yaml."""
     stages, _ = provenance_stages(scene, simulator="always")
-    return sorted({f for s in stages for f in stage_code(s)}) + [f"{PARAM_STAMPS}/{s}.json" for s in stages]
+    return sorted({f for s in stages for f in stage_code(s)}) + [stamp_file(s) for s in stages]
 
 
 @cache

@@ -8,7 +8,7 @@ rule drift_report:
         code=stage_code("cmd_report_drift"),
         params=param_stamp("cmd_report_drift", "drift_session"),
         raw=drift_raw_inputs(),
-        provenance=provenance_inputs("drift"),
+        provenance=lambda w: provenance_inputs("drift"),
     output:
         reported(DRIFT_TARGETS, "drift"),
         series=f"{DRIFT}/drift_series.csv",

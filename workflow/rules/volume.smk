@@ -105,7 +105,7 @@ rule volume_report:
         raw=volume_raw_inputs(),
         code=stage_code("cmd_report_volume"),
         params=param_stamp("cmd_report_volume"),
-        provenance=provenance_inputs("volume"),
+        provenance=lambda w: provenance_inputs("volume"),
     output:
         reported(VOLUME_TARGETS, "volume"),
     params:
