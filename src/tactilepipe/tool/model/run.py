@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from tactilepipe.core.atomic import write_json, write_parquet
-from tactilepipe.pipeline.scenes import LABEL_NORMALISATION, scene_label
+from tactilepipe.tool.scenes import LABEL_NORMALISATION, scene_label
 from tactilepipe.tool.model.evaluate import evaluate
 from tactilepipe.tool.data.loader import ToolFrames
 

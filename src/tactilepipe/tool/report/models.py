@@ -25,8 +25,8 @@ from tactilepipe.tool.report import verdicts
 from tactilepipe.tool.model.evaluate import (BASELINES, LIKE_FOR_LIKE, baselines, evaluate, rest_frame_rmse_features,
                                        tactile_rmse_features)
 from tactilepipe.tool.data.loader import ToolFrames
-from tactilepipe.pipeline.runs import run_spec, sweep_run_name
-from tactilepipe.pipeline.scenes import scene_label
+from tactilepipe.tool.runs import run_spec, sweep_run_name
+from tactilepipe.tool.scenes import scene_label
 from tactilepipe.tool.data.splits import parse_split_name
 
 SPLIT_0_KEYS = ("mae", "rmse", "r2", "slope", "intercept", "parameters", "epochs", "depth", "image_size")
