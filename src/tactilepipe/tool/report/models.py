@@ -1,7 +1,7 @@
 """Tool scene results: metrics.json, tables and the model figures, from the trained runs.
 
 Runs live in results/<scene>/models/<run>/ (eval.json, predictions.parquet); their names are
-explained in ``pipeline/runs.py``. Repeat 0 of the default split is the one the per-run figures and
+explained in ``tool/runs.py``. Repeat 0 of the default split is the one the per-run figures and
 the ``variants`` table draw; every score is also reported over all repeats (mean, std, 95 %
 interval), with paired differences between variants and each variant's verdict against the
 baselines that have its information (``evaluate.LIKE_FOR_LIKE``).
