@@ -40,7 +40,7 @@ def untrained_checkpoint(p: dict, path: Path) -> Path:
     import torch
     from tactilepipe.tool.model.network import build_model
     from tactilepipe.tool.model.checkpoint import CHECKPOINT_FORMAT
-    from tactilepipe.tool.model.train import TrainConfig
+    from tactilepipe.tool.model.train_config import TrainConfig
     tt = p["tool_train"]
     size = tt["image_size"]
     cfg = TrainConfig.from_params(tt, variant="full", depth=tt["depth"], image_size=size, normalise="minmax",

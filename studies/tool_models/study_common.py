@@ -15,14 +15,15 @@ import numpy as np
 from tactilepipe.core.config import load_params
 from tactilepipe.tool.model.evaluate import linear_fit_predictions, summarise, tactile_rmse_features
 from tactilepipe.tool.data.loader import ToolFrames
-from tactilepipe.tool.model.run import LABELS, train_and_predict
+from tactilepipe.tool.model.run import train_and_predict
+from tactilepipe.tool.scenes import TOOL_SCENES, scene_label
 
 REPO = Path(__file__).resolve().parents[2]
 
 
 def study_arguments(description: str) -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=description)
-    ap.add_argument("--scene", default="tool_normal", choices=sorted(LABELS))
+    ap.add_argument("--scene", default="tool_normal", choices=sorted(TOOL_SCENES))
     ap.add_argument("--scene-dir", type=Path, help="a built scene (default: results/<scene>)")
     ap.add_argument("--variants", nargs="+", default=["no_ref"])
     return ap
@@ -41,7 +42,7 @@ class Scene:
 def load_scene(args: argparse.Namespace) -> Scene:
     params = load_params(REPO / "params.yaml", {"scale": "default"})
     scene_dir = args.scene_dir or REPO / "results" / args.scene
-    label, _ = LABELS[args.scene]
+    label = scene_label(args.scene)
     data = ToolFrames(scene_dir / "data", label)
     return Scene(params["tool_train"], params["seed"], scene_dir, label, data,
                  tactile_rmse_features(data.frames, data.references, data.trial_index))

@@ -24,7 +24,7 @@ import yaml
 
 from support.dvc_graph import covers, dvc_stages
 from support.project import BIN, REPO, build, copy_project, dvc, git, run, snakemake
-from tactilepipe.pipeline.scenes import TOOL_SCENES
+from tactilepipe.tool.scenes import TOOL_SCENES
 
 pytestmark = pytest.mark.integration
 

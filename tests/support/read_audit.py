@@ -43,7 +43,7 @@ ALLOWED_PREFIXES = {
 # modules every stage imports to build the command line, whatever it runs: every study's command
 # module (each imports its stage's code inside the stage's function) and what they import at their
 # top, which only names choices (the tool scenes)
-PARSER_MODULES = ("src/tactilepipe/cli/", "src/tactilepipe/pipeline/scenes.py", "src/tactilepipe/pipeline/__init__.py")
+PARSER_MODULES = ("src/tactilepipe/cli/", "src/tactilepipe/tool/scenes.py", "src/tactilepipe/tool/__init__.py")
 IMPORT_AUDIT_SITE = Path(__file__).parent / "import_audit"
 SIMULATED_TRIAL = re.compile(r"raw/tool/sim-[^/]+/[^/]+/meta\.json")
 

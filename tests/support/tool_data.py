@@ -11,7 +11,7 @@ import pandas as pd
 
 from tactilepipe.tool.data.loader import ToolFrames
 from tactilepipe.tool.data.splits import label_stats
-from tactilepipe.tool.model.train import TrainConfig
+from tactilepipe.tool.model.train_config import TrainConfig
 
 S = 32            # image size of the training tests (the smoke scale)
 # torch threads of a test: under `make test` two pytest-xdist workers share the two cores, and a

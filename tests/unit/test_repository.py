@@ -1,5 +1,6 @@
 """The repository as a newcomer meets it: a short README whose links and promised places exist,
-short library modules, and no pointer to material outside the repository."""
+short library modules whose packages import each other one way only, and no pointer to material
+outside the repository."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import subprocess
 import pytest
 
 from tactilepipe.core.config import REPO_ROOT
+from tactilepipe.pipeline.codedeps import PACKAGE, module_imports
 
 LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
 # spelled in two parts so that this file does not match itself
@@ -48,6 +50,95 @@ def test_the_places_the_readme_promises_exist():
     assert re.search(r"^VARIANTS\b", (src / "tool" / "model" / "network.py").read_text(), re.M)
     figures = list((src / "tool" / "report").glob("figures_*.py"))
     assert figures and all("savefig" in f.read_text() or "save_figure" in f.read_text() for f in figures)
+
+
+class OtherThan(tuple):
+    """Every module of tactilepipe outside the packages named."""
+
+
+# Who may not import whom. A name is a package of tactilepipe with everything under it
+# ("tool.formats": tool/formats/*.py; "__main__": the module `python -m tactilepipe` runs).
+LAYER_RULES = [
+    # importers                                          may not import                          rule
+    (("core",),                                          OtherThan(("core",)),
+     "core is the base: it imports no other tactilepipe package"),
+    (("tool.formats",),                                  ("tool.data", "tool.model", "tool.report"),
+     "the raw trial formats come before the data, models and reports made from them"),
+    (("tool", "volume", "drift", "papillarray", "rig"),  ("pipeline", "cli"),
+     "study and rig code serve the workflow glue (pipeline) and the command line (cli), never the reverse"),
+    # __main__ is the command line's entry point: it runs cli.main
+    (OtherThan(("cli", "__main__")),                     ("cli",),
+     "only the command line imports the command line"),
+]
+
+
+def library_modules() -> list[str]:
+    """Every module of src/tactilepipe by its dotted name (a package by its __init__.py)."""
+    src = REPO_ROOT / "src"
+    names = []
+    for path in sorted((src / PACKAGE).rglob("*.py")):
+        parts = path.relative_to(src).with_suffix("").parts
+        names.append(".".join(parts[:-1] if parts[-1] == "__init__" else parts))
+    return names
+
+
+def import_graph() -> dict[str, set[str]]:
+    """module -> the tactilepipe modules it imports, at module level or inside functions."""
+    return {m: set(module_imports(m)) - {m} for m in library_modules()}
+
+
+def _covers(packages: tuple[str, ...], module: str) -> bool:
+    name = module.removeprefix(PACKAGE).removeprefix(".")
+    inside = any(name == p or name.startswith(p + ".") for p in packages)
+    return not inside if isinstance(packages, OtherThan) else inside
+
+
+def layer_violations(graph: dict[str, set[str]]) -> list[str]:
+    return [f"{importer} imports {imported}: {rule}"
+            for importer, imports in sorted(graph.items()) for imported in sorted(imports)
+            for importers, forbidden, rule in LAYER_RULES
+            if _covers(importers, importer) and _covers(forbidden, imported)]
+
+
+def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The import cycles, one for each import that closes a cycle in a depth-first walk, each as
+    [a, b, ..., a]."""
+    cycles, state, path = [], {}, []
+
+    def visit(module):
+        state[module] = "open"
+        path.append(module)
+        for imported in sorted(graph.get(module, ())):
+            if state.get(imported) == "open":
+                cycles.append(path[path.index(imported):] + [imported])
+            elif imported not in state:
+                visit(imported)
+        path.pop()
+        state[module] = "done"
+
+    for module in sorted(graph):
+        if module not in state:
+            visit(module)
+    return cycles
+
+
+def test_no_import_cycle_among_library_modules():
+    cycles = import_cycles(import_graph())
+    assert not cycles, "import cycles:\n" + "\n".join(" -> ".join(c) for c in cycles)
+
+
+def test_packages_import_each_other_one_way_only():
+    violations = layer_violations(import_graph())
+    assert not violations, "\n".join(violations)
+
+
+def test_the_import_audits_find_what_they_look_for():
+    graph = {"tactilepipe.core.a": {"tactilepipe.tool.b"}, "tactilepipe.tool.b": {"tactilepipe.core.a"},
+             "tactilepipe.tool.formats.c": {"tactilepipe.tool.data.d"}, "tactilepipe.__main__": {"tactilepipe.cli.e"}}
+    assert import_cycles(graph) == [["tactilepipe.core.a", "tactilepipe.tool.b", "tactilepipe.core.a"]]
+    assert layer_violations(graph) == [
+        f"tactilepipe.core.a imports tactilepipe.tool.b: {LAYER_RULES[0][2]}",
+        f"tactilepipe.tool.formats.c imports tactilepipe.tool.data.d: {LAYER_RULES[1][2]}"]
 
 
 def test_library_modules_are_short():

@@ -17,8 +17,8 @@ from tactilepipe.volume.simulate import session_plan
 from tactilepipe.drift.simulate import session_plan as drift_plan
 from tactilepipe.tool.formats.trials import list_trials as list_tool_trials, public_trial_meta, read_trials_csv, trial_files
 from tactilepipe.tool.sim import session_plan as tool_plan
-from tactilepipe.pipeline import runs as run_names
-from tactilepipe.pipeline.scenes import scene_label
+from tactilepipe.tool import runs as run_names
+from tactilepipe.tool.scenes import scene_label
 from tactilepipe.tool.data.splits import split_name
 from tactilepipe.tool.sim.background import background_path
 

@@ -7,7 +7,7 @@ import sys
 
 from tactilepipe.cli import compare, drift, rig, study000, tool, volume
 from tactilepipe.core.errors import TactilepipeError
-from tactilepipe.pipeline.scenes import TOOL_SCENES
+from tactilepipe.tool.scenes import TOOL_SCENES
 
 
 def cmd_simulate(args) -> None:

@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 
 from tactilepipe.cli.common import stage_params
-from tactilepipe.pipeline.scenes import TOOL_SCENES
 from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.tool.scenes import TOOL_SCENES
 
 
 def cmd_unpack_public(args) -> None:

@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 from tactilepipe.cli.common import stage_params, run_parallel
-from tactilepipe.pipeline.scenes import TOOL_SCENES, scene_label
+from tactilepipe.tool.scenes import TOOL_SCENES, scene_label
 
 
 def cmd_simulate_tool(args) -> None:
@@ -165,7 +165,7 @@ def add_parsers(sub, common, provenance) -> None:
     s.add_argument("--scene", choices=list(TOOL_SCENES), required=True)
     s.add_argument("--in-dir", required=True)
     s.add_argument("--runs", nargs="+", required=True,
-                   help="every run of the scene (results/<scene>/models/<run>; names as in pipeline/runs.py)")
+                   help="every run of the scene (results/<scene>/models/<run>; names as in tool/runs.py)")
     s.set_defaults(func=cmd_tool_report)
 
     s = sub.add_parser("portability", help="compare a smoke build's tool runs with results/portability.json: the "

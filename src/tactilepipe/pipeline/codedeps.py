@@ -102,14 +102,14 @@ def module_closure(module: str) -> frozenset[str]:
             if name in seen or module_path(name) is None:
                 continue
             seen.add(name)
-            todo.extend(_module_imports(name))
+            todo.extend(module_imports(name))
     return frozenset(seen)
 
 
 @lru_cache(maxsize=None)
-def _module_imports(module: str) -> frozenset[str]:
-    """The `tactilepipe` modules ``module`` imports anywhere in its file (walked once per module:
-    every Snakemake start computes the closures of all stages)."""
+def module_imports(module: str) -> frozenset[str]:
+    """The `tactilepipe` modules ``module`` imports anywhere in its file, at module level or inside a
+    function (walked once per module: every Snakemake start computes the closures of all stages)."""
     path = module_path(module)
     return frozenset(_imports_in(_tree(path), module, path.name == "__init__.py"))
 

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 from tactilepipe.core.errors import InputError
 from tactilepipe.core.intervals import paired_difference
-from tactilepipe.pipeline.scenes import TOOL_SCENES
+from tactilepipe.tool.scenes import TOOL_SCENES
 
 SCENES = ("volume", "drift", *TOOL_SCENES)
 # stages whose change leaves the draws (splits, folds) alone: the models and their report

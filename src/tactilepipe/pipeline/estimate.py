@@ -62,7 +62,7 @@ def planned_pairs(p: dict, scene: str, root: Path = Path(".")) -> int | None:
     if samples.exists():
         import pyarrow.parquet as pq
         return pq.ParquetFile(samples).metadata.num_rows
-    from tactilepipe.pipeline.scenes import scene_label
+    from tactilepipe.tool.scenes import scene_label
     kind = scene_label(scene)
     sessions = p["tool_sessions"]
     if not sessions or not all(s.startswith("sim-") for s in sessions):

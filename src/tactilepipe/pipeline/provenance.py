@@ -9,21 +9,13 @@ bury the differences that matter; `dvc metrics diff --targets <scene>/runtime.js
 from __future__ import annotations
 
 import hashlib
-import os
-import platform
-import subprocess
-from importlib import metadata
 from pathlib import Path
 
-from tactilepipe.pipeline import codedeps
 from tactilepipe.core.atomic import write_json
 from tactilepipe.core.config import declared
+from tactilepipe.core.environment import environment, git_state
 from tactilepipe.core.hashing import file_sha256
-
-PACKAGES = ("torch", "numpy", "scikit-learn", "pandas")
-# environment variables that choose the code of torch's, oneDNN's and MKL's kernels
-KERNEL_VARIABLES = ("ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA", "DNNL_MAX_CPU_ISA", "MKL_CBWR",
-                    "MKL_ENABLE_INSTRUCTIONS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+from tactilepipe.pipeline import codedeps
 
 
 def session_hash(path: str | Path) -> str:
@@ -36,60 +28,6 @@ def session_hash(path: str | Path) -> str:
         rel = f.relative_to(path).as_posix() if path.is_dir() else f.name
         h.update(f"{rel}\0{file_sha256(f)}\0".encode())
     return h.hexdigest()
-
-
-def environment() -> dict:
-    """Package versions and the CPU instruction set the numerical kernels chose (the same code and
-    data give slightly different trained models on different instruction sets)."""
-    versions = {}
-    for name in PACKAGES:
-        try:
-            versions[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            versions[name] = None
-    env = {"python": platform.python_version(), "packages": versions, "machine": platform.machine(),
-           "cpu": _cpu(), "kernel_settings": {k: os.environ.get(k) for k in KERNEL_VARIABLES}}
-    try:
-        import torch
-        env["torch_cpu_capability"] = torch.backends.cpu.get_cpu_capability()
-    except ImportError:
-        env["torch_cpu_capability"] = None
-    return env
-
-
-def _cpu() -> dict:
-    """CPU vendor, model (name, family and number: a model name such as "AMD EPYC" covers several
-    generations) and the vector extensions the math libraries choose kernels by (Linux)."""
-    model, flags, fields = platform.processor() or None, set(), {}
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            key, _, value = line.partition(":")
-            key, value = key.strip(), value.strip()
-            if key == "model name" and value:
-                model = value
-            elif key == "flags":
-                flags = set(value.split())
-            elif key in ("vendor_id", "cpu family", "model") and key not in fields:
-                fields[key] = value
-    except OSError:
-        pass
-    return {"model": model, "vendor": fields.get("vendor_id"), "family": fields.get("cpu family"),
-            "model_number": fields.get("model"),
-            "vector_extensions": sorted(f for f in flags if f.startswith(("avx", "amx", "fma")))}
-
-
-def git_state(root: str | Path = ".") -> dict:
-    """The commit the code was at, and whether the workflow's code or parameters had uncommitted
-    changes when the result was made (then the commit alone does not describe it)."""
-    def git(*args):
-        proc = subprocess.run(["git", *args], cwd=root, capture_output=True, text=True)
-        return proc.stdout.strip() if proc.returncode == 0 else None
-    try:
-        commit = git("rev-parse", "HEAD")
-        dirty = git("status", "--porcelain", "--", "src", "workflow", "Snakefile", "params.yaml")
-    except OSError:
-        commit = dirty = None
-    return {"commit": commit, "uncommitted_changes": bool(dirty) if commit else None}
 
 
 def scene_provenance(stages: list[str], params: dict, sessions: list[str | Path]) -> dict:

@@ -8,7 +8,6 @@ import hashlib
 import json
 from dataclasses import asdict
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -16,9 +15,7 @@ import torch
 from tactilepipe.core.atomic import atomic_path
 from tactilepipe.core.errors import InputError
 from tactilepipe.tool.model.network import PAPER_WIDTH
-
-if TYPE_CHECKING:
-    from tactilepipe.tool.model.train import TrainConfig
+from tactilepipe.tool.model.train_config import TrainConfig
 
 CHECKPOINT_FORMAT = "tactilepipe.tool.train/1"   # a file format tag, not a module path: kept so older checkpoints load
 HISTORY_COLUMNS = ["epoch", "train_loss", "val_loss", "val_mae_n", "lr", "epoch_s", "wall_s"]

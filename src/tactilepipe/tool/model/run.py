@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from tactilepipe.core.atomic import write_json, write_parquet
-from tactilepipe.pipeline.scenes import LABEL_NORMALISATION, scene_label
+from tactilepipe.tool.scenes import LABEL_NORMALISATION, scene_label
 from tactilepipe.tool.model.evaluate import evaluate
 from tactilepipe.tool.data.loader import ToolFrames
 
@@ -20,7 +20,8 @@ from tactilepipe.tool.data.loader import ToolFrames
 def train_and_predict(scene: str, data_dir: Path, split_path: Path, out_dir: Path, variant: str, depth: int,
                       image_size: int, tp: dict, seed: int, progress: bool = True) -> dict:
     from tactilepipe.tool.model.checkpoint import stale_checkpoint_reason
-    from tactilepipe.tool.model.train import TrainConfig, train
+    from tactilepipe.tool.model.train import train
+    from tactilepipe.tool.model.train_config import TrainConfig
     from tactilepipe.tool.model.inference import latency_ms, load_model, predict
     label = scene_label(scene)
     normalise = LABEL_NORMALISATION[label]

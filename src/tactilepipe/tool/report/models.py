@@ -1,7 +1,7 @@
 """Tool scene results: metrics.json, tables and the model figures, from the trained runs.
 
 Runs live in results/<scene>/models/<run>/ (eval.json, predictions.parquet); their names are
-explained in ``pipeline/runs.py``. Repeat 0 of the default split is the one the per-run figures and
+explained in ``tool/runs.py``. Repeat 0 of the default split is the one the per-run figures and
 the ``variants`` table draw; every score is also reported over all repeats (mean, std, 95 %
 interval), with paired differences between variants and each variant's verdict against the
 baselines that have its information (``evaluate.LIKE_FOR_LIKE``).
@@ -25,8 +25,8 @@ from tactilepipe.tool.report import verdicts
 from tactilepipe.tool.model.evaluate import (BASELINES, LIKE_FOR_LIKE, baselines, evaluate, rest_frame_rmse_features,
                                        tactile_rmse_features)
 from tactilepipe.tool.data.loader import ToolFrames
-from tactilepipe.pipeline.runs import run_spec, sweep_run_name
-from tactilepipe.pipeline.scenes import scene_label
+from tactilepipe.tool.runs import run_spec, sweep_run_name
+from tactilepipe.tool.scenes import scene_label
 from tactilepipe.tool.data.splits import parse_split_name
 
 SPLIT_0_KEYS = ("mae", "rmse", "r2", "slope", "intercept", "parameters", "epochs", "depth", "image_size")

@@ -26,10 +26,10 @@ from datetime import date
 from pathlib import Path
 
 from tactilepipe.core.atomic import write_json
+from tactilepipe.core.environment import environment, git_state
 from tactilepipe.core.errors import InputError, TactilepipeError
 from tactilepipe.core.hashing import file_sha256
-from tactilepipe.pipeline.provenance import environment, git_state
-from tactilepipe.pipeline.scenes import TOOL_SCENES
+from tactilepipe.tool.scenes import TOOL_SCENES
 
 TRAIN_STAGE = "cmd_tool_train"
 

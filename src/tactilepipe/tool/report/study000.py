@@ -26,7 +26,7 @@ from tactilepipe.core.errors import InputError
 from tactilepipe.core.tables import write_table
 from tactilepipe.tool.model.evaluate import evaluate
 from tactilepipe.tool.data.loader import ToolFrames
-from tactilepipe.pipeline.scenes import scene_label
+from tactilepipe.tool.scenes import scene_label
 from tactilepipe.tool.data.splits import label_stats
 
 PUBLIC_IMAGE_SIZE = 224     # the public code resizes every frame to 224 x 224

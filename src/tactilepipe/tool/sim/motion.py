@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from tactilepipe.core.errors import ConfigError
-from tactilepipe.tool.sim import render as dr
 from tactilepipe.tool.sim.plan import G, TrialSpec, uniform
+from tactilepipe.tool.sim.render import Grid
 
 
 def min_jerk(x: np.ndarray) -> np.ndarray:
@@ -121,7 +121,7 @@ def _skew(p: np.ndarray) -> np.ndarray:
 class Grasp:
     """Contact lines, stiffness and lever arms of one trial's grasp."""
 
-    def __init__(self, spec: TrialSpec, sim: dict, rig: dict, rng: np.random.Generator, grid: dr.Grid):
+    def __init__(self, spec: TrialSpec, sim: dict, rig: dict, rng: np.random.Generator, grid: Grid):
         g = sim["grasp"]
         tool = sim["tools"][spec.tool]
         pose = sim["poses"][spec.pose_index] if spec.pose_index < len(sim["poses"]) else {}

@@ -54,10 +54,10 @@ import numpy as np
 from tactilepipe.core.atomic import atomic_path, write_text
 from tactilepipe.core.errors import ConfigError
 from tactilepipe.tool.formats import native_layout as layout
-from tactilepipe.tool.sim import render as dr
 from tactilepipe.tool.sim.motion import Grasp, PressProfile, SlideProfile
 from tactilepipe.tool.sim.plan import (KINDS, SESSION_EPOCH_S, STREAM_LOOK, STREAM_RIG, TrialSpec, calibration_matrix,
                                        frames_per_trial, sim_group, trial_rng, uniform)
+from tactilepipe.tool.sim.render import DigitLook, Grid, HandleProfile, LineContact, Renderer, make_look
 
 TRUTH_RATE_HZ = 1000.0              # rate of simulate_trial's ground-truth series
 
@@ -78,15 +78,15 @@ def _rig(params: dict) -> dict:
     }
 
 
-def _grid(sim: dict) -> dr.Grid:
+def _grid(sim: dict) -> Grid:
     r = sim["render"]
-    return dr.Grid(px_per_mm=float(r["px_per_mm"]), down=int(r["height_downsample"]))
+    return Grid(px_per_mm=float(r["px_per_mm"]), down=int(r["height_downsample"]))
 
 
-def _looks(params: dict, grid: dr.Grid) -> list[dr.DigitLook]:
+def _looks(params: dict, grid: Grid) -> list[DigitLook]:
     sim = sim_group(params)
-    return [dr.make_look(np.random.default_rng(np.random.SeedSequence([params["seed"], STREAM_LOOK, s])),
-                         sim["render"], grid) for s in range(2)]
+    return [make_look(np.random.default_rng(np.random.SeedSequence([params["seed"], STREAM_LOOK, s])),
+                      sim["render"], grid) for s in range(2)]
 
 
 class Trial:
@@ -139,29 +139,29 @@ class Trial:
         spec, sim, seed = self.spec, self.sim, self.params["seed"]
         looks = _looks(self.params, self.grid)
         tool = sim["tools"][spec.tool]
-        profile = dr.HandleProfile(radius_mm=tool["handle_radius_mm"], flat_width_mm=tool["flat_width_mm"],
-                                   end_radius_mm=tool["end_radius_mm"], texture=tool["texture"],
-                                   texture_period_mm=tool["texture_period_mm"],
-                                   texture_depth_mm=tool["texture_depth_mm"])
+        profile = HandleProfile(radius_mm=tool["handle_radius_mm"], flat_width_mm=tool["flat_width_mm"],
+                                end_radius_mm=tool["end_radius_mm"], texture=tool["texture"],
+                                texture_period_mm=tool["texture_period_mm"],
+                                texture_depth_mm=tool["texture_depth_mm"])
         contacts, renderers = [], []
         for s in range(2):
             # the two pads touch opposite sides of the handle: their own stretch of its texture
             roll = self.grasp.roll + np.pi * s
-            contacts.append(dr.LineContact(self.grid, s == 1, self.grasp.butt, self.grasp.axis,
-                                           self.grasp.s_k, profile, roll, trial_rng(seed, spec, 20 + s),
-                                           drag_sigma_mm=sim["render"]["shear_spread_mm"]))
-            look = looks[s] if self.noise else dr.DigitLook(**{**looks[s].__dict__, "noise_std": 0.0})
-            renderers.append(dr.Renderer(look, self.grid, sim["render"], trial_rng(seed, spec, 30 + s)))
+            contacts.append(LineContact(self.grid, s == 1, self.grasp.butt, self.grasp.axis,
+                                        self.grasp.s_k, profile, roll, trial_rng(seed, spec, 20 + s),
+                                        drag_sigma_mm=sim["render"]["shear_spread_mm"]))
+            look = looks[s] if self.noise else DigitLook(**{**looks[s].__dict__, "noise_std": 0.0})
+            renderers.append(Renderer(look, self.grid, sim["render"], trial_rng(seed, spec, 30 + s)))
         self._contacts, self._renderers = contacts, renderers
 
     @property
-    def contacts(self) -> list[dr.LineContact]:
+    def contacts(self) -> list[LineContact]:
         if self._contacts is None:
             self._build_renderers()
         return self._contacts
 
     @property
-    def renderers(self) -> list[dr.Renderer]:
+    def renderers(self) -> list[Renderer]:
         if self._renderers is None:
             self._build_renderers()
         return self._renderers
