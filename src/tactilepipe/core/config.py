@@ -199,7 +199,7 @@ class DeclaredParams(dict):
 
     def __missing__(self, key):
         raise ConfigError(f"{self.where}: reads parameter '{key}', which the stage does not declare "
-                          f"(add it to the stage's _params keys in tactilepipe.cli)")
+                          f"(add it to the stage's stage_params(...) call in its tactilepipe.cli module)")
 
     def get(self, key, default=None):
         """As ``self[key]``: an undeclared key is an error, never a silent second default."""
