@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SNAKEMAKE := $(BIN)/snakemake --cores 2 --workflow-profile workflow/profiles/default
 
-.PHONY: run test test-unit test-slurm smoke regimes bench clean-results pull dvc.yaml study000-import study000 study000-published
+.PHONY: run test test-unit test-slurm smoke regimes bench clean-results pull dvc.yaml schema study000-import study000 study000-published
 
 $(STAMP): requirements.txt pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -59,6 +59,9 @@ pull: $(STAMP)  ## fetch shared results (dvc pull) and, once DVC finds them curr
 
 dvc.yaml: $(STAMP)  ## regenerate dvc.yaml from the Snakemake graph, and studies/000/dvc.yaml (run after editing rules, stages or imports)
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python workflow/scripts/dvc_yaml.py
+
+schema: $(STAMP)  ## regenerate params.yaml's JSON schema from the parameter models (run after editing src/tactilepipe/core/parameters/)
+	$(BIN)/python workflow/scripts/params_schema.py
 
 clean-results:  ## remove generated results (raw recordings stay)
 	rm -rf results/volume results/volume_regimes results/drift results/logs

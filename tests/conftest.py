@@ -9,14 +9,15 @@ from pathlib import Path
 
 import pytest
 
-from tactilepipe.core.config import REPO_ROOT, load_params
+from tactilepipe.core.config import load_params
 from tactilepipe.papillarray.shards import ingest_bag
 from tactilepipe.volume import simulate as vsim
 
 from support import bags
+from support.project import REPO
 from support.tool_data import TORCH_THREADS
 
-PARAMS_PATH = REPO_ROOT / "params.yaml"
+PARAMS_PATH = REPO / "params.yaml"
 
 
 # The modules whose tests read the shared smoke build (tests/integration/conftest.py).

@@ -20,11 +20,11 @@ import torch
 
 from tactilepipe.core.config import load_params
 from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.core.parameters.resources import RuleResources
 from tactilepipe.pipeline.estimate import estimate_report, forward_flops, planned_pairs, training_flops
 
 from support.project import BIN, REPO, copy_project, run
 
-SCHEMA = json.loads((REPO / "workflow/schemas/params.schema.json").read_text())
 CLUSTER = REPO / ".ci" / "slurm-cluster"
 
 
@@ -45,8 +45,7 @@ def test_every_rule_that_runs_something_declares_its_resources():
     for name in runs:
         assert f'**rule_resources("{name}")' in blocks[name], name
     # params.yaml names exactly these rules (the schema refuses a misspelt one)
-    schema_rules = set(SCHEMA["properties"]["resources"]["properties"]["rules"]["properties"])
-    assert schema_rules == runs
+    assert set(RuleResources.model_fields) == runs
     assert set(load_params(REPO / "params.yaml")["resources"]["rules"]) == runs
 
 

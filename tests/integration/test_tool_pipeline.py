@@ -6,18 +6,19 @@ import numpy as np
 import pytest
 
 from support import tool_sim
-from tactilepipe.core.config import REPO_ROOT, load_params
+from tactilepipe.core.config import load_params
 from tactilepipe.tool import sim as ts
 from tactilepipe.tool.data.dataset import build_tool_dataset
 from tactilepipe.tool.formats.trials import list_trials, open_trial
 from tactilepipe.tool.data.ingest import ingest_trial
 from tactilepipe.tool.data.loader import ToolFrames
 from support.ros_writer import write_ros_trial
+from support.project import REPO
 
 
 @pytest.fixture(scope="module")
 def params():
-    return load_params(REPO_ROOT / "params.yaml", {"scale": "smoke"})
+    return load_params(REPO / "params.yaml", {"scale": "smoke"})
 
 
 @pytest.fixture(scope="module")

@@ -12,11 +12,12 @@ import pytest
 
 from tactilepipe.papillarray import physics
 from tactilepipe.cli.main import main
-from tactilepipe.core.config import REPO_ROOT
 from tactilepipe.core.errors import ConfigError
 from tactilepipe.volume import grasp
 from tactilepipe.volume import simulate as vsim
 from tactilepipe.volume.regimes import PAPER_R2, reproduces_ordering
+
+from support.project import REPO
 
 VOLUMES = [0.0, 100.0, 200.0, 300.0]
 
@@ -165,7 +166,7 @@ def test_a_regime_may_only_change_grasp_keys(params_path):
 
 def test_analysis_code_never_reads_the_simulator_settings():
     """The regime is a property of the recordings only: a real session runs through the same code."""
-    volume = REPO_ROOT / "src" / "tactilepipe" / "volume"
+    volume = REPO / "src" / "tactilepipe" / "volume"
     for name in ("dataset.py", "folds.py", "train.py", "mlp.py", "baseline.py", "report.py", "figures.py"):
         text = (volume / name).read_text()
         for key in ("simulate_volume", "grip_regime", "crosstalk_t_to_n"):
@@ -182,7 +183,7 @@ def test_paper_table_has_the_paper_ordering():
 @pytest.fixture(scope="module")
 def comparison(tmp_path_factory, smoke_params) -> Path:
     out = tmp_path_factory.mktemp("regimes") / "out"
-    code = main(["volume-regimes", "--params", str(REPO_ROOT / "params.yaml"), "--scale", "smoke",
+    code = main(["volume-regimes", "--params", str(REPO / "params.yaml"), "--scale", "smoke",
                  "--out-dir", str(out), "--jobs", "1", "--regimes", "force", "position", "retighten"])
     assert code == 0
     return out
@@ -222,7 +223,7 @@ def test_comparison_shows_each_regimes_physics(comparison):
 
 
 def test_unknown_regime_is_refused(tmp_path, capsys):
-    code = main(["volume-regimes", "--params", str(REPO_ROOT / "params.yaml"), "--scale", "smoke",
+    code = main(["volume-regimes", "--params", str(REPO / "params.yaml"), "--scale", "smoke",
                  "--out-dir", str(tmp_path), "--regimes", "nosuch"])
     assert code == 2
     assert "nosuch" in capsys.readouterr().err

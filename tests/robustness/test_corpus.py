@@ -41,6 +41,7 @@ from tactilepipe.volume.labels import read_session_labels
 from support.bags import sensor_stream, write_ros1_bag
 from support.sessions import (INGEST, N_FRAMES, SIZE, START_NS, SYNC, digit_frame, make_native_session,
                               make_public_session, noisy, serial_lines, write_ros, write_serial)
+from support.project import REPO
 
 
 # --- good inputs the cases break: tests/support/sessions.py ---------------------------------------
@@ -758,8 +759,7 @@ def test_lifts_csv_with_a_byte_order_mark_and_spaces_reads(tmp_path):
 # params.yaml
 
 def _params_case(c: Ctx, change: Callable[[dict], None] | str, problem: str) -> Case:
-    from tactilepipe.core.config import REPO_ROOT
-    raw = yaml.safe_load((REPO_ROOT / "params.yaml").read_text())
+    raw = yaml.safe_load((REPO / "params.yaml").read_text())
     path = c.tmp / "in" / "params.yaml"
     path.parent.mkdir(parents=True, exist_ok=True)
     if isinstance(change, str):

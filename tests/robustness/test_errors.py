@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 
 from tactilepipe.papillarray import messages as pa
-from tactilepipe.core.config import REPO_ROOT
 from tactilepipe.core.errors import ArgumentError, InputError, TactilepipeError
 from tactilepipe.core.metrics import r2_detail
 from tactilepipe.papillarray.shards import DEFAULT_POSE_TOPIC, read_papillarray_bag
@@ -40,7 +39,7 @@ def test_cli_bad_ros_topics_is_one_line_naming_the_parameter(tmp_path):
     override = {"tool_ingest": {"ros_topics": {"digit_left": "/cam", "digit_right": "/cam"}}}
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(SRC), os.environ.get("PYTHONPATH", "")])}
     proc = subprocess.run([sys.executable, "-m", "tactilepipe", "ingest-tool", str(tmp_path / "t.bag"),
-                           "--format", "ros", "--out", str(out), "--params", str(REPO_ROOT / "params.yaml"),
+                           "--format", "ros", "--out", str(out), "--params", str(REPO / "params.yaml"),
                            "--override", json.dumps(override)],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 2, proc.stderr

@@ -14,6 +14,8 @@ from tactilepipe.core.config import load_params
 from tactilepipe.core.errors import ConfigError, InputError
 from tactilepipe.volume.dataset import build_dataset
 
+from support.project import REPO
+
 
 def reversed_shard(src, dst, sensors, axis="gfy"):
     df = pd.read_parquet(src)
@@ -61,9 +63,8 @@ def test_the_axis_map_reads_a_reversed_sensor_right(sim_lifts, smoke_params, tmp
 
 
 def test_an_axis_map_that_is_not_a_permutation_is_refused(tmp_path):
-    from tactilepipe.core.config import REPO_ROOT
     path = tmp_path / "params.yaml"
-    path.write_text((REPO_ROOT / "params.yaml").read_text().replace(
+    path.write_text((REPO / "params.yaml").read_text().replace(
         'sensor_1: {x: "+x", y: "+y", z: "+z"}', 'sensor_1: {x: "+x", y: "+x", z: "+z"}'))
     with pytest.raises(ConfigError, match=r"papillarray_axes.sensor_1 must take each recorded axis x, y, z once"):
         load_params(path)

@@ -21,6 +21,7 @@ from tactilepipe.tool.formats.public_layout import _parse_force
 from tactilepipe.tool.formats.serial_log import read_serial_log
 
 from support.bags import sensor_stream, write_ros1_bag
+from support.project import REPO
 
 FAST = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 SLOW = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -280,8 +281,7 @@ def test_params_file_of_any_bytes_loads_or_is_a_config_error(data):
 @given(st.dictionaries(st.sampled_from(["seed", "scale", "folds", "mlp", "scenes", "segment", "unknown"]),
                        json_values, max_size=3))
 def test_params_overrides_of_any_shape_load_or_are_a_config_error(overrides):
-    from tactilepipe.core.config import REPO_ROOT
     try:
-        load_params(REPO_ROOT / "params.yaml", overrides)
+        load_params(REPO / "params.yaml", overrides)
     except ConfigError:
         pass

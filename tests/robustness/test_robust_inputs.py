@@ -16,6 +16,7 @@ from tactilepipe.tool.data.ingest import ingest_trial
 from tactilepipe.tool.report.data import qc_markdown
 
 from support.sessions import INGEST, N_FRAMES, SIZE, SYNC, digit_frame, make_native_session, make_public_session
+from support.project import REPO
 
 
 @pytest.fixture
@@ -70,9 +71,9 @@ def test_landscape_frames_are_noted_and_not_mixed_with_portrait_ones(native, pub
 
 
 def test_numbers_yaml_1_1_reads_as_strings_are_numbers_where_the_schema_wants_one(tmp_path):
-    from tactilepipe.core.config import REPO_ROOT, load_params
+    from tactilepipe.core.config import load_params
     from tactilepipe.core.errors import ConfigError
-    text = (REPO_ROOT / "params.yaml").read_text()
+    text = (REPO / "params.yaml").read_text()
     assert "  tol: 0.0001" in text
     path = tmp_path / "params.yaml"
     path.write_text(text.replace("  tol: 0.0001", "  tol: 1e-4"))

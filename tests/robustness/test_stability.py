@@ -21,7 +21,6 @@ import pytest
 
 from support import tool_sim
 from tactilepipe.papillarray import physics
-from tactilepipe.core.config import REPO_ROOT
 from tactilepipe.core.errors import ConfigError, InputError, TactilepipeError
 from tactilepipe.core.metrics import (R2_CONSTANT, R2_EMPTY, R2_NONFINITE, format_metric, r2_detail,
                                  r2_score)
@@ -33,6 +32,7 @@ from tactilepipe.volume.folds import make_folds
 from tactilepipe.volume.mlp import MLPConfig, MLPDivergedError, MLPRegressor
 
 from support.volume_data import baseline_data
+from support.project import REPO
 
 G = physics.G
 SILICONE = ve.Prony((0.05, 0.05), (0.0005, 1.5))      # the benchmark's soft silicone: stiff at 100-1000 Hz
@@ -135,7 +135,7 @@ def test_lift_with_creep_lags_the_load_and_settles(quiet):
 
 def test_integrator_benchmark_table(tmp_path):
     # the benchmark script itself, at its quick setting: 500 Hz, substeps 1, 2 and 8
-    proc = subprocess.run([sys.executable, str(REPO_ROOT / "benchmarks" / "bench_integrators.py"), "--quick",
+    proc = subprocess.run([sys.executable, str(REPO / "benchmarks" / "bench_integrators.py"), "--quick",
                            "--out", str(tmp_path)], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
     table = pd.read_csv(tmp_path / "integrators.csv")

@@ -34,7 +34,7 @@ SYSCALLS = "execve,open,openat,rename,renameat,renameat2,clone,clone3,fork,vfork
 ALLOWED = {
     "params.yaml": "parameters: each stage reads only its declared keys, tracked by the rule's parameter "
                    "stamp (results/params/<stage>.json), which is declared",
-    "workflow/schemas/params.schema.json": "validation of params.yaml: it accepts or refuses, never changes a value",
+    "src/tactilepipe/core/params.schema.json": "validation of params.yaml: it accepts or refuses, never changes a value",
 }
 ALLOWED_PREFIXES = {
     ".git/": "provenance.json records the commit and whether code had uncommitted changes (`git`), not an input",

@@ -229,7 +229,8 @@ def test_a_stage_receives_only_the_keys_it_declares():
     p = declared(resolved, ["scale", "mlp.grid"], "cmd_x")
     assert p == {"scale": "smoke", "mlp": {"grid": {"alpha": [1e-4]}}}
     assert p["mlp"]["grid"]["alpha"] == [1e-4]
-    with pytest.raises(ConfigError, match="cmd_x: reads parameter 'seed', which the stage does not declare"):
+    with pytest.raises(ConfigError, match=r"cmd_x: reads parameter 'seed', which the stage does not declare "
+                                          r"\(add it to the stage's stage_params\(\.\.\.\) call in its tactilepipe.cli module\)"):
         p["seed"]
     with pytest.raises(ConfigError, match="cmd_x: reads parameter 'max_iter'"):
         p["mlp"]["max_iter"]                       # a sibling of a declared key is not declared

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from support import tool_sim
+from support.project import REPO
 from tactilepipe.cli import main as cli
-from tactilepipe.core.config import REPO_ROOT, deep_merge, load_params
+from tactilepipe.core.config import deep_merge, load_params
 from tactilepipe.core.errors import InputError
 from tactilepipe.tool.sim import realism
 from tactilepipe.tool import sim as ts
@@ -21,7 +22,7 @@ from tactilepipe.tool.formats.native_layout import FRAME_H, FRAME_W, SENSORS
 
 @pytest.fixture(scope="module")
 def default_params() -> dict:
-    return load_params(REPO_ROOT / "params.yaml")
+    return load_params(REPO / "params.yaml")
 
 
 def _with_background(params: dict, path) -> dict:
@@ -161,7 +162,7 @@ def test_simulate_tool_stops_on_a_bad_background_with_one_line(tmp_path, capsys)
     bad = tmp_path / "bad.jpg"
     bad.write_bytes(b"not an image")
     override = json.dumps({"simulate_tool": {"render": {"background": str(bad)}}})
-    rc = cli.main(["simulate", "tool", "--params", str(REPO_ROOT / "params.yaml"), "--scale", "smoke",
+    rc = cli.main(["simulate", "tool", "--params", str(REPO / "params.yaml"), "--scale", "smoke",
                    "--override", override, "--out-dir", str(tmp_path / "session"), "--jobs", "2"])
     err = capsys.readouterr().err
     assert rc == 2 and str(bad) in err and "simulate_tool.render.background" in err

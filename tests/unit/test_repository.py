@@ -9,8 +9,9 @@ import subprocess
 
 import pytest
 
-from tactilepipe.core.config import REPO_ROOT
 from tactilepipe.pipeline.codedeps import PACKAGE, module_imports
+
+from support.project import REPO
 
 LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
 # spelled in two parts so that this file does not match itself
@@ -19,12 +20,12 @@ OUTSIDE = [re.compile(p) for p in (r"\.\./" + "shared", "REFERENCE" + r"\.md", r
 
 def tracked_text_files():
     try:
-        names = subprocess.run(["git", "ls-files"], cwd=REPO_ROOT, capture_output=True, text=True,
+        names = subprocess.run(["git", "ls-files"], cwd=REPO, capture_output=True, text=True,
                                check=True).stdout.split()
     except (OSError, subprocess.CalledProcessError):
         pytest.skip("not a git checkout")
     for name in names:
-        path = REPO_ROOT / name
+        path = REPO / name
         if path.suffix in {".png", ".pdf", ".npy", ".parquet", ".pt", ".bag", ".jpg"} or not path.is_file():
             continue
         try:
@@ -34,18 +35,18 @@ def tracked_text_files():
 
 
 def test_readme_is_short():
-    assert len((REPO_ROOT / "README.md").read_bytes()) <= 8000
+    assert len((REPO / "README.md").read_bytes()) <= 8000
 
 
 def test_links_of_the_readme_and_docs_exist():
-    for page in [REPO_ROOT / "README.md", *(REPO_ROOT / "docs").rglob("*.md")]:
+    for page in [REPO / "README.md", *(REPO / "docs").rglob("*.md")]:
         for target in LINK.findall(page.read_text()):
             if "://" not in target and not target.startswith("mailto:"):
-                assert (page.parent / target).exists(), f"{page.relative_to(REPO_ROOT)} links to missing {target}"
+                assert (page.parent / target).exists(), f"{page.relative_to(REPO)} links to missing {target}"
 
 
 def test_the_places_the_readme_promises_exist():
-    src = REPO_ROOT / "src" / "tactilepipe"
+    src = REPO / "src" / "tactilepipe"
     assert "class ToolFrames" in (src / "tool" / "data" / "loader.py").read_text()
     assert re.search(r"^VARIANTS\b", (src / "tool" / "model" / "network.py").read_text(), re.M)
     figures = list((src / "tool" / "report").glob("figures_*.py"))
@@ -74,7 +75,7 @@ LAYER_RULES = [
 
 def library_modules() -> list[str]:
     """Every module of src/tactilepipe by its dotted name (a package by its __init__.py)."""
-    src = REPO_ROOT / "src"
+    src = REPO / "src"
     names = []
     for path in sorted((src / PACKAGE).rglob("*.py")):
         parts = path.relative_to(src).with_suffix("").parts
@@ -142,7 +143,7 @@ def test_the_import_audits_find_what_they_look_for():
 
 
 def test_library_modules_are_short():
-    long = {str(p.relative_to(REPO_ROOT)): n for p in (REPO_ROOT / "src").rglob("*.py")
+    long = {str(p.relative_to(REPO)): n for p in (REPO / "src").rglob("*.py")
             if (n := len(p.read_text().splitlines())) > 400}
     assert not long, f"modules over 400 lines: {long}"
 
@@ -157,9 +158,9 @@ def test_the_declared_dependencies_admit_the_locked_versions():
     import tomllib
     from packaging.requirements import Requirement
     from packaging.utils import canonicalize_name
-    declared = [Requirement(r) for r in tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())["project"]["dependencies"]]
+    declared = [Requirement(r) for r in tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["dependencies"]]
     locked = {}
-    for line in (REPO_ROOT / "requirements.txt").read_text().splitlines():
+    for line in (REPO / "requirements.txt").read_text().splitlines():
         if "==" in line and not line.startswith("#"):
             name, version = line.split("==")
             locked[canonicalize_name(name)] = version.strip()

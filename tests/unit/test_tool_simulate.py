@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from support import public_formats, tool_sim
-from tactilepipe.core.config import REPO_ROOT, deep_merge, load_params
+from support.project import REPO
+from tactilepipe.core.config import deep_merge, load_params
 from tactilepipe.core.errors import ConfigError, InputError
 from tactilepipe.tool.sim import render as dr
 from tactilepipe.tool.formats import native_layout as layout
@@ -25,7 +26,7 @@ LSB_V = layout.ADC_VOLTS / layout.ADC_COUNTS
 
 @pytest.fixture(scope="module")
 def default_params() -> dict:
-    return {"simulate_tool": load_params(REPO_ROOT / "params.yaml", {"scale": "default"})["simulate_tool"],
+    return {"simulate_tool": load_params(REPO / "params.yaml", {"scale": "default"})["simulate_tool"],
             "seed": SEED}
 
 
@@ -37,7 +38,7 @@ def group(default_params) -> dict:
 @pytest.fixture(scope="module")
 def params() -> dict:
     """The smoke scale of params.yaml."""
-    return {"simulate_tool": load_params(REPO_ROOT / "params.yaml", {"scale": "smoke"})["simulate_tool"],
+    return {"simulate_tool": load_params(REPO / "params.yaml", {"scale": "smoke"})["simulate_tool"],
             "seed": SEED}
 
 

@@ -136,7 +136,7 @@ rule tool_data:
 
 
 # --- models ------------------------------------------------------------------------------------
-# Runs (pipeline/runs.py): each variant on every repeat of the default split, the full model leaving
+# Runs (tool/runs.py): each variant on every repeat of the default split, the full model leaving
 # out each tool in turn, and the sweep (other depth / input size, for error against run time).
 
 

@@ -1,7 +1,8 @@
 """Load params.yaml, apply the chosen scale's overlay, validate against the JSON schema.
 
 Snakemake (workflow/rules/common.smk) and the CLI both go through `load_params`, so a stage
-sees the same numbers whichever way it is started.
+sees the same numbers whichever way it is started. The schema is package data generated from the
+parameter models in `tactilepipe.core.parameters` (`make schema`).
 """
 
 from __future__ import annotations
@@ -9,6 +10,8 @@ from __future__ import annotations
 import copy
 import json
 import re
+from functools import cache
+from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
@@ -17,13 +20,13 @@ import yaml
 
 from tactilepipe.core.errors import ConfigError
 
-REPO_ROOT = Path(__file__).resolve().parents[3]
-SCHEMA_PATH = REPO_ROOT / "workflow" / "schemas" / "params.schema.json"
+PARAMS_SCHEMA = files("tactilepipe.core") / "params.schema.json"
 DEFAULT_PARAMS = Path("params.yaml")
 
 
-def _schema() -> dict:
-    return json.loads(SCHEMA_PATH.read_text())
+@cache
+def _validator() -> jsonschema.Draft202012Validator:
+    return jsonschema.Draft202012Validator(json.loads(PARAMS_SCHEMA.read_text()))
 
 
 def deep_merge(base: dict, overlay: dict) -> dict:
@@ -97,8 +100,7 @@ _YAML12_FLOAT = re.compile(r"^[-+]?(\.[0-9]+|[0-9]+(\.[0-9]*)?)([eE][-+]?[0-9]+)
 def _numbers_yaml11_missed(raw: dict) -> dict:
     """``raw`` with number-looking strings turned into numbers where the schema expects one."""
     raw = copy.deepcopy(raw)
-    validator = jsonschema.Draft202012Validator(_schema())
-    for err in validator.iter_errors(raw):
+    for err in _validator().iter_errors(raw):
         expected = err.validator_value if err.validator == "type" else None
         expected = [expected] if isinstance(expected, str) else expected or []
         if "number" not in expected or not isinstance(err.instance, str) or not _YAML12_FLOAT.match(err.instance):
@@ -113,8 +115,7 @@ def _numbers_yaml11_missed(raw: dict) -> dict:
 
 def validate(raw: dict, source: str = "params.yaml") -> None:
     """Raise ConfigError naming the first offending key (wrong key, type or range)."""
-    validator = jsonschema.Draft202012Validator(_schema())
-    errors = sorted(validator.iter_errors(raw), key=lambda e: (len(e.absolute_path), str(e.absolute_path)))
+    errors = sorted(_validator().iter_errors(raw), key=lambda e: (len(e.absolute_path), str(e.absolute_path)))
     if errors:
         raise ConfigError(_format_error(errors[0], source))
 
@@ -198,7 +199,7 @@ class DeclaredParams(dict):
 
     def __missing__(self, key):
         raise ConfigError(f"{self.where}: reads parameter '{key}', which the stage does not declare "
-                          f"(add it to the stage's _params keys in tactilepipe.cli)")
+                          f"(add it to the stage's stage_params(...) call in its tactilepipe.cli module)")
 
     def get(self, key, default=None):
         """As ``self[key]``: an undeclared key is an error, never a silent second default."""

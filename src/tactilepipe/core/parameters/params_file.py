@@ -1,0 +1,52 @@
+"""The whole of params.yaml: its parameter groups, the top-level values, and the scale overlays."""
+
+from typing import Annotated, Literal
+
+from pydantic import Field
+
+from tactilepipe.core.parameters.base import Group, RequiredKeys, SessionName, UniqueList, overlay_of
+from tactilepipe.core.parameters.resources import Resources
+from tactilepipe.core.parameters.tool import Predict, PublicData, ToolIngest, ToolSplit, ToolSync, ToolTrain
+from tactilepipe.core.parameters.tool_sim import SimulateTool
+from tactilepipe.core.parameters.volume import (Baseline, Drift, Folds, Mlp, PapillarrayAxes, Segment,
+                                                SimulateDrift, SimulateVolume, VolumeRegimes)
+
+
+class ParameterGroups(Group):
+    """The groups of params.yaml, one per stage or rig: what a scale may overlay."""
+
+    simulate_volume: SimulateVolume
+    simulate_drift: SimulateDrift
+    segment: Segment
+    folds: Folds
+    mlp: Mlp
+    baseline: Baseline
+    drift: Drift
+    papillarray_axes: PapillarrayAxes
+    tool_ingest: ToolIngest
+    tool_sync: ToolSync
+    tool_split: ToolSplit
+    simulate_tool: SimulateTool
+    tool_train: ToolTrain
+    predict: Predict
+    resources: Resources
+    volume_regimes: VolumeRegimes
+    public_data: PublicData
+
+
+# what each of `scales:` may give: any part of any group (config.resolve merges it over the groups)
+ScaleOverlay = overlay_of(ParameterGroups)
+
+
+class Params(ParameterGroups):
+    """Parameters grouped by stage. `scales.<name>` holds partial overlays of the groups."""
+
+    scenes: UniqueList[Literal["volume", "drift", "tool_normal", "tool_shear"]] = Field(min_length=1)
+    scale: str
+    seed: int = Field(ge=0, le=2**32 - 1, description="below 2**32: numpy's and torch's generators take it, "
+                                                      "with room for the per-repeat and per-epoch offsets")
+    volume_sessions: UniqueList[SessionName] = Field(min_length=1)
+    volume_sensor: Literal[0, 1]
+    drift_session: SessionName
+    tool_sessions: UniqueList[SessionName] = Field(min_length=1)
+    scales: Annotated[dict[str, ScaleOverlay], RequiredKeys("smoke", "default", "paper")]

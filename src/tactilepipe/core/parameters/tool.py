@@ -1,0 +1,132 @@
+"""Parameter groups of study 000's data and models: ingest, sync, splits, training, prediction,
+and the study's own published data."""
+
+from typing import Annotated, Literal
+
+from pydantic import Field, NonNegativeFloat, NonNegativeInt, PositiveFloat
+
+from tactilepipe.core.parameters.base import Group, RequiredKeys, Triple, UniqueList
+
+Depth = Literal[18, 34, 50, 101]          # ResNet depths
+Kernels = Literal["portable", "native"]
+
+
+class ClockSync(Group):
+    """Native trials: the Arduino clock refined against the images (tool/data/clock_sync.py)."""
+
+    min_score: float = Field(ge=-1, le=1)
+    max_finger_disagreement_s: PositiveFloat
+    on_low_score: Literal["refuse", "host_clock", "drop"]
+    min_force_range_n: PositiveFloat
+
+
+class RosTopics(Group):
+    """Topics of trials recorded as ROS bags."""
+
+    digit_left: str
+    digit_right: str
+    wrench: str
+
+
+class ToolIngest(Group):
+    """Where a frame becomes a model input."""
+
+    image_size: int = Field(ge=8, le=1024)
+    max_offset_s: PositiveFloat
+    ros_topics: RosTopics
+    clock: ClockSync
+
+
+class ToolSync(Group):
+    """Pairing frames with force samples."""
+
+    max_gap_s: PositiveFloat
+    pair_rate_hz: NonNegativeFloat
+    reference: Literal["first", "median_pre_contact"]
+    contact_n: PositiveFloat
+    normal_sign: Literal[-1, 1]
+
+
+class ToolSplit(Group):
+    """Train/validation/test splits of the tool datasets."""
+
+    fractions: Triple[Annotated[float, Field(gt=0, lt=1)]]
+    repeats: int = Field(ge=1, description="how many draws of the default split every variant is trained on "
+                                           "(repeat 0 is the one the figures draw)")
+    holdout_pose: NonNegativeInt
+    level_n: PositiveFloat
+
+
+class SweepRun(Group):
+    """An extra full-model run for error against run time."""
+
+    depth: Depth
+    image_size: int = Field(ge=8)
+
+
+class ToolTrain(Group):
+    """The CNN + GAM + ResNet model of study 000 and its ablations."""
+
+    variants: UniqueList[Literal["full", "no_ref", "single", "no_gam"]] = Field(min_length=1)
+    split: Literal["frame", "trial", "lopo"]
+    loto: bool
+    depth: Depth
+    image_size: int = Field(ge=8, description="side S of the square inputs the model is trained on "
+                                              "(the dataset's frames are area-downscaled to it)")
+    sweep: list[SweepRun]
+    lr: PositiveFloat
+    lr_schedule: Literal["constant", "cosine"] = Field(
+        description="constant: Adam at lr throughout (the paper); cosine: per batch from lr down to 0 at max_epochs")
+    batch_size: int = Field(ge=1)
+    max_epochs: int = Field(ge=1)
+    patience: int = Field(ge=1)
+    max_train_batches_per_epoch: NonNegativeInt
+    bn_recalibration_batches: NonNegativeInt = Field(
+        description="training batches that re-estimate BatchNorm statistics before each validation (0: off)")
+    device: Literal["auto", "cpu", "cuda"]
+    amp: bool
+    num_threads: int = Field(ge=1)
+    gam_channel_gate: Literal["sigmoid", "none"] = Field(
+        description="GAM channel branch: sigmoid-gated (ours) or ungated (the public code of study 000, "
+                    "needed by its published weights)")
+    width: int = Field(ge=1, description="channels of the first encoder stage (the paper: 64); every layer's "
+                                         "channels and the head scale with it")
+    kernels: Kernels = Field(
+        description="numerical kernels: portable (the same bytes on every x86 CPU with AVX2; one thread, "
+                    "no oneDNN) or native (each library's fastest code for this CPU)")
+
+
+class Predict(Group):
+    """`tactilepipe predict`: one frame pair at a time, on a CPU other jobs share."""
+
+    num_threads: int = Field(ge=1)
+    wait_policy: Literal["passive", "active"]
+    kernels: Kernels
+
+
+class PublicFile(Group):
+    """A Git LFS file of study 000's public repository, checked against its size and sha256."""
+
+    url: str = Field(min_length=1)
+    size: int = Field(ge=1, description="bytes")
+    sha256: str = Field(pattern=r"^[0-9a-f]{64}$")
+
+
+class PaperScores(Group):
+    """The paper's full model on normal force (its frame-level test set)."""
+
+    mae_n: NonNegativeFloat
+    r2: float = Field(le=1)
+
+
+PublicFileName = Annotated[str, Field(pattern=r"^[A-Za-z0-9_]+$")]
+
+
+class PublicData(Group):
+    """study 000's own recordings and published weights (docs/reproduce_study_000.md): read only by the
+    opt-in pipeline in studies/000/"""
+
+    session: str = Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_-]*$")
+    files: Annotated[dict[PublicFileName, PublicFile],
+                     RequiredKeys("data_normal", "data_shear", "best_model_normal", "best_model_shear")]
+    paper: PaperScores

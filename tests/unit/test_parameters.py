@@ -1,0 +1,116 @@
+"""The parameter models and the JSON schema generated from them: the committed schema is what the
+models give, it is the one file config validates with, and a scale overlay takes any part of any
+group (nested groups too) and nothing else."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from tactilepipe.core.config import PARAMS_SCHEMA, load_params
+from tactilepipe.core.errors import ConfigError
+from tactilepipe.core.parameters import Params, ScaleOverlay
+from tactilepipe.core.parameters.base import Group
+from tactilepipe.core.parameters.schema import params_schema
+
+from support.project import BIN, REPO, run
+
+SCRIPT = "workflow/scripts/params_schema.py"
+
+
+# --- the generated schema --------------------------------------------------------------------------
+
+def test_the_committed_schema_is_what_the_models_give():
+    proc = run([str(BIN / "python"), SCRIPT, "--check"], REPO, check=False)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+
+
+def test_a_stale_schema_is_refused_with_what_differs(tmp_path):
+    stale = tmp_path / "params.schema.json"
+    text = Path(str(PARAMS_SCHEMA)).read_text()
+    line = '"lifts_per_volume": {"minimum": 1, "type": "integer"}'
+    assert line in text
+    stale.write_text(text.replace(line, line.replace("1", "2"), 1))
+    proc = run([str(BIN / "python"), SCRIPT, "--check", "--out", str(stale)], REPO, check=False)
+    assert proc.returncode == 1
+    assert '-        "lifts_per_volume": {"minimum": 2, "type": "integer"}' in proc.stdout
+    assert '+        "lifts_per_volume": {"minimum": 1, "type": "integer"}' in proc.stdout
+    assert "run `make schema`" in proc.stdout
+    assert stale.read_text() != text                  # --check never writes
+
+
+def test_the_schema_is_one_file_shipped_with_the_package():
+    assert (REPO / "workflow/schemas/params.schema.json").is_symlink()
+    assert (REPO / "workflow/schemas/params.schema.json").resolve() == Path(str(PARAMS_SCHEMA)).resolve()
+    assert Path(str(PARAMS_SCHEMA)).resolve() == (REPO / "src/tactilepipe/core/params.schema.json").resolve()
+    package_data = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]
+    assert "params.schema.json" in package_data["tactilepipe.core"]
+
+
+# --- the scale overlays ----------------------------------------------------------------------------
+
+def _groups(model: type[Group]) -> set[str]:
+    return {name for name, f in model.model_fields.items()
+            if isinstance(f.annotation, type) and issubclass(f.annotation, Group)}
+
+
+def test_a_scale_may_overlay_every_group_and_nothing_else():
+    assert set(ScaleOverlay.model_fields) == _groups(Params)
+    assert {"scenes", "scale", "seed", "volume_sessions", "scales"}.isdisjoint(ScaleOverlay.model_fields)
+
+
+def test_each_overlay_has_its_groups_keys_and_constraints_none_required():
+    defs = params_schema()["$defs"]
+    # the groups the schema holds whole and as an overlay (a few exist only as overlays)
+    groups = {name[:-len("Overlay")] for name in defs if name.endswith("Overlay")} & defs.keys()
+    assert {"SimulateVolume", "PositionGrip", "Mlp", "MlpGrid", "ToolTrain", "DigitRender", "JobResources"} <= groups
+    for group in groups:
+        whole, overlay = defs[group], defs[f"{group}Overlay"]
+        assert "required" not in overlay, group
+        assert overlay["additionalProperties"] is False, group
+        assert overlay["properties"].keys() == whole["properties"].keys(), group
+        for key, schema in whole["properties"].items():
+            # a nested group's key refers to that group's overlay (an overlay is its own); every
+            # other key is as in the group
+            expected = schema
+            if "$ref" in schema and not schema["$ref"].endswith("Overlay"):
+                expected = {**schema, "$ref": schema["$ref"] + "Overlay"}
+            assert overlay["properties"][key] == expected, (group, key)
+
+
+def test_an_overlay_gives_part_of_a_nested_group(params_path):
+    p = load_params(params_path, {"scale": "smoke",
+                                  "scales": {"smoke": {"simulate_volume": {"position": {"squeeze_mm": 10.0}}}}})
+    default = load_params(params_path)
+    assert p["simulate_volume"]["position"]["squeeze_mm"] == 10.0
+    assert {k: v for k, v in p["simulate_volume"]["position"].items() if k != "squeeze_mm"} == \
+        {k: v for k, v in default["simulate_volume"]["position"].items() if k != "squeeze_mm"}
+    assert p["simulate_volume"]["rate_hz"] == 100                  # the rest of the smoke overlay still applies
+
+
+def test_an_overlay_reads_yaml_1_1_exponents_as_numbers(params_path):
+    p = load_params(params_path, {"scale": "smoke", "scales": {"smoke": {"mlp": {"alpha": "1e-4"}}}})
+    assert p["mlp"]["alpha"] == 1e-4
+
+
+OVERLAY_MISTAKES = [
+    ("unknown_nested_key", {"smoke": {"simulate_volume": {"position": {"squeeze": 1.0}}}},
+     r"at 'scales.smoke.simulate_volume.position': Additional properties are not allowed \('squeeze' was unexpected\)"),
+    ("unknown_group", {"paper": {"tool_trian": {"lr": 0.1}}}, r"at 'scales.paper': .*'tool_trian' was unexpected"),
+    ("top_level_value", {"paper": {"seed": 1}}, r"at 'scales.paper': .*'seed' was unexpected"),
+    ("null_key", {"smoke": {"folds": {"n_folds": None}}}, r"at 'scales.smoke.folds.n_folds': None is not of type 'integer'"),
+    ("out_of_range", {"smoke": {"folds": {"n_folds": 0}}}, r"at 'scales.smoke.folds.n_folds': 0 is less than the minimum of 1"),
+    ("list_item_stays_whole", {"smoke": {"tool_train": {"sweep": [{"depth": 18}]}}},
+     r"at 'scales.smoke.tool_train.sweep.0': 'image_size' is a required property"),
+    ("unknown_rule", {"paper": {"resources": {"rules": {"tool_trian": {"gpu": 1}}}}},
+     r"at 'scales.paper.resources.rules': .*'tool_trian' was unexpected"),
+]
+
+
+@pytest.mark.parametrize("name, scales, problem", OVERLAY_MISTAKES, ids=[m[0] for m in OVERLAY_MISTAKES])
+def test_an_overlay_refuses_what_its_group_refuses_naming_the_key(params_path, name, scales, problem):
+    with pytest.raises(ConfigError, match=problem) as err:
+        load_params(params_path, {"scales": scales})
+    assert str(err.value).startswith(f"{params_path}: invalid parameter at 'scales.")
