@@ -16,6 +16,7 @@ import yaml
 
 from tactilepipe.core.config import load_params
 from tactilepipe.tool.model.network import PAPER_WIDTH, build_model, count_parameters
+from tactilepipe.tool.report.portability import run_digests
 
 from support.project import BIN, REPO, copy_project, run, snakemake
 
@@ -272,3 +273,33 @@ def test_a_dry_run_writes_nothing_and_a_scale_round_trip_reruns_only_what_change
     assert not back & {"simulate_volume", "ingest_papillarray"}, back      # sim-smoke's bags and shards stand
     assert (wd / "results/volume/metrics.json").read_bytes() == before
     assert _ran(snakemake(wd, "-n", *volume, "scale=smoke")) == set()
+
+
+NEW_VARIANT = '''
+VARIANTS["no_ref_no_gam"] = Variant(((0, 1), (2, 3)), False, "rest_frame_rmse_linear", "no reference, no attention",
+                                    "#55A868", "current frames only and no GAM: both ablations at once")
+'''
+
+
+def test_a_new_model_variant_is_one_entry_in_variants_py(smoke_build: Path, tmp_path: Path):
+    """Registering a variant where the network defines it, with its baseline pairing, is all it takes:
+    the command line offers it, Snakemake plans and trains it on every repeat, the report scores it
+    against its like-for-like baseline, and dvc.yaml is still what its generator makes."""
+    wd = shutil.copytree(smoke_build, tmp_path / "wd", symlinks=True)
+    variants = wd / "src/tactilepipe/tool/model/variants.py"
+    variants.write_text(variants.read_text() + NEW_VARIANT)
+    assert "no_ref_no_gam" in run([str(BIN / "python"), "-m", "tactilepipe", "tool-train", "--help"], wd).stdout
+    plan = snakemake(wd, "-n", "--config", "scenes=[tool_normal]")
+    for run_name in ("no_ref_no_gam", "no_ref_no_gam_r1"):
+        assert f"results/tool_normal/models/{run_name}/eval.json" in plan.stdout, run_name
+    assert run([str(BIN / "python"), "workflow/scripts/dvc_yaml.py", "--check"], wd).returncode == 0
+    assert "src/tactilepipe/tool/model/variants.py" in yaml.safe_load((wd / "dvc.yaml").read_text())[
+        "stages"]["tool_models"]["deps"]                          # so `dvc repro` re-runs the models too
+    before = run_digests(wd / "results")
+    snakemake(wd, "results/tool_normal/metrics.json", "--config", "scenes=[tool_normal]")
+    after = run_digests(wd / "results")        # the others re-trained (their code changed) to the same bytes
+    assert {r: d for r, d in after.items() if "no_ref_no_gam" not in r} == before
+    metrics = json.loads((wd / "results/tool_normal/metrics.json").read_text())
+    new = metrics["no_ref_no_gam"]
+    assert new["like_for_like_baseline"] == "rest_frame_rmse_linear" and new["over_splits"]["mae"]["n"] == 2
+    assert "| no_ref_no_gam |" in (wd / "results/tool_normal/tables/variants.md").read_text()

@@ -21,6 +21,7 @@ from tactilepipe.tool import runs as run_names
 from tactilepipe.tool.scenes import scene_label
 from tactilepipe.tool.data.splits import split_name
 from tactilepipe.tool.sim.background import background_path
+from tactilepipe.tool.model.variants import chosen_variants
 
 # `config` is params.yaml plus any --config overrides; validate and resolve the scale up front
 # so a wrong key or type stops the run before any job starts.
@@ -31,6 +32,7 @@ config.update(typed_like(config, _FILE_PARAMS))
 OVERRIDES = changed_leaves(config, _FILE_PARAMS)
 try:
     P = resolve(dict(config), "params.yaml (+ --config)", OVERRIDES)
+    chosen_variants(P["tool_train"]["variants"])
 except TactilepipeError as exc:
     raise WorkflowError(str(exc)) from None
 CLI = f"{shlex.quote(sys.executable)} -m tactilepipe"

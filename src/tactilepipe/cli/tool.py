@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 from tactilepipe.cli.common import stage_params, run_parallel
+from tactilepipe.tool.model.variants import VARIANTS
 from tactilepipe.tool.scenes import TOOL_SCENES, scene_label
 
 
@@ -152,7 +153,7 @@ def add_parsers(sub, common, provenance) -> None:
 
     s = sub.add_parser("tool-train", parents=[common], help="train one tool-force model variant, predict its test set")
     s.add_argument("--scene", choices=list(TOOL_SCENES), required=True)
-    s.add_argument("--variant", choices=["full", "no_ref", "single", "no_gam"], required=True)
+    s.add_argument("--variant", choices=list(VARIANTS), required=True)
     s.add_argument("--data-dir", required=True)
     s.add_argument("--split", required=True, help="split file (results/<scene>/splits/<name>.json)")
     s.add_argument("--out-dir", required=True)

@@ -72,6 +72,12 @@ def _typed(value, ref):
         return typed_like(value, ref if isinstance(ref, dict) else {})
     if isinstance(value, list) and isinstance(ref, list) and ref:
         return [_typed(v, ref[0]) for v in value]
+    if isinstance(value, str) and isinstance(ref, str) and value.lstrip().startswith("["):
+        try:                                   # a list where params.yaml has a word ("variants: all")
+            parsed = yaml.safe_load(value)
+        except yaml.YAMLError:
+            return value
+        return parsed if isinstance(parsed, list) else value
     if isinstance(value, str) and ref is not None and not isinstance(ref, str):
         try:
             parsed = yaml.safe_load(value)

@@ -16,6 +16,8 @@ import re
 
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.tool.data.splits import parse_split_name, split_name
+from tactilepipe.tool.model.variants import chosen_variants
+
 
 def sweep_run_name(entry: dict) -> str:
     return f"full_d{entry['depth']}_s{entry['image_size']}"
@@ -33,7 +35,7 @@ def loto_run_name(tool: str) -> str:
 def tool_runs(tool_train: dict, repeats: int, tools: list[str]) -> list[str]:
     """Every run of a scene: each variant on every repeat, leave-one-tool-out for every tool
     (when ``tool_train.loto``), then the sweep."""
-    runs = [r for v in tool_train["variants"] for r in repeat_runs(v, repeats)]
+    runs = [r for v in chosen_variants(tool_train["variants"]) for r in repeat_runs(v, repeats)]
     runs += [loto_run_name(t) for t in sorted(tools)] if tool_train["loto"] else []
     return runs + [sweep_run_name(s) for s in tool_train["sweep"]]
 
@@ -41,17 +43,18 @@ def tool_runs(tool_train: dict, repeats: int, tools: list[str]) -> list[str]:
 def run_spec(tool_train: dict, run: str) -> tuple[str, str, int, int]:
     """(variant, split name, depth, image size) of a run name."""
     depth, size, split = tool_train["depth"], tool_train["image_size"], tool_train["split"]
+    variants = chosen_variants(tool_train["variants"])
     for s in tool_train["sweep"]:
         if run == sweep_run_name(s):
             return "full", split, s["depth"], s["image_size"]
-    if run in tool_train["variants"]:
+    if run in variants:
         return run, split, depth, size
     m = re.fullmatch(r"(.+)_r([1-9][0-9]*)", run)
-    if m and m.group(1) in tool_train["variants"]:
+    if m and m.group(1) in variants:
         return m.group(1), split_name(split, int(m.group(2))), depth, size
     if run.startswith("full_"):
         other = run[len("full_"):]
         parse_split_name(other)          # refuses a name that is no split
         return "full", other, depth, size
-    raise TactilepipeError(f"run '{run}': not a tool run (variants {tool_train['variants']}, <variant>_r<k>, "
+    raise TactilepipeError(f"run '{run}': not a tool run (variants {variants}, <variant>_r<k>, "
                            f"full_loto_<tool>, full_d<depth>_s<size> of tool_train.sweep, full_<split>)")

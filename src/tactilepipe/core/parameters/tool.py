@@ -67,7 +67,9 @@ class SweepRun(Group):
 class ToolTrain(Group):
     """The CNN + GAM + ResNet model of study 000 and its ablations."""
 
-    variants: UniqueList[Literal["full", "no_ref", "single", "no_gam"]] = Field(min_length=1)
+    variants: Literal["all"] | UniqueList[str] = Field(
+        min_length=1, description="the model variants to train: all (every one tool/model/variants.py defines) or "
+                                  "a list of their names")
     split: Literal["frame", "trial", "lopo"]
     loto: bool
     depth: Depth

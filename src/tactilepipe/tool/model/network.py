@@ -42,38 +42,17 @@ a trailing batch of one sample).
 from __future__ import annotations
 
 import numbers
-from dataclasses import dataclass
 
 import torch
 from torch import nn
 
 from tactilepipe.core.errors import ArgumentError
+from tactilepipe.tool.model.variants import VARIANTS
 
 MIN_IMAGE_SIZE = 8
 GAM_CHANNEL_GATES = ("sigmoid", "none")
 PAPER_WIDTH = 64                     # the published model's width (its weights need it)
 
-
-@dataclass(frozen=True)
-class Variant:
-    sensors: tuple[tuple[int, int], ...]   # per encoder: [start, stop) slice of the 4 input channels
-    gam: bool                              # GAM blocks present (else identity)
-    doc: str
-
-
-VARIANTS: dict[str, Variant] = {
-    "full": Variant(((0, 2), (2, 4)), True,
-                    "the published model: both fingers, each with its zero-force reference, GAMs on"),
-    "no_ref": Variant(((0, 1), (2, 3)), True,
-                      "reference frames removed: each finger's encoder reads only its current frame (1 ch)"),
-    "single": Variant(((0, 2),), True,
-                      "left finger only (current + reference): one encoder + GAM(256), no fusion GAM; "
-                      "the ResNet's first conv takes 256 channels"),
-    "no_gam": Variant(((0, 2), (2, 4)), False,
-                      "both fingers with references, every GAM replaced by identity"),
-}
-"""Model variants of the paper's ablation, by name. Each entry says which input channels each
-encoder reads (slices of [left, left_ref, right, right_ref]) and whether the GAMs exist."""
 
 DEPTHS: dict[int, tuple[str, list[int]]] = {
     18: ("basic", [2, 2, 2, 2]),

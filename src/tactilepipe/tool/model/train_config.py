@@ -10,7 +10,7 @@ from dataclasses import dataclass
 class TrainConfig:
     """One run's training settings. Every value comes from params.yaml ``tool_train`` (``from_params``)
     or from the run itself (variant, size, label scaling, seed): none has a default here."""
-    variant: str                        # key of network.VARIANTS
+    variant: str                        # key of variants.VARIANTS
     depth: int                          # ResNet depth: 18, 34, 50, 101
     image_size: int                     # S of the (b, 4, S, S) inputs (must match the dataset)
     lr: float                           # Adam

@@ -13,10 +13,10 @@ import pandas as pd
 
 from tactilepipe.core.atomic import save_figure
 from tactilepipe.core.plotting import close, figure
+from tactilepipe.tool.model.variants import VARIANTS
 
-VARIANT_COLORS = {"full": "#C44E52", "no_gam": "#8172B2", "no_ref": "#64B5CD", "single": "#1f3d7a"}
-VARIANT_LABELS = {"full": "full model", "no_gam": "no attention (GAM)", "no_ref": "no reference frame",
-                  "single": "single sensor"}
+VARIANT_COLORS = {name: v.colour for name, v in VARIANTS.items()}
+VARIANT_LABELS = {name: v.label for name, v in VARIANTS.items()}
 
 
 def sorted_predictions(pred: pd.DataFrame, label: str, out: Path) -> None:

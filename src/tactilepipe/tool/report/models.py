@@ -22,6 +22,7 @@ from tactilepipe.core.intervals import interval
 from tactilepipe.core.tables import write_table
 from tactilepipe.tool.report import figures_models as fm
 from tactilepipe.tool.report import verdicts
+from tactilepipe.tool.model.variants import chosen_variants
 from tactilepipe.tool.model.evaluate import (BASELINES, LIKE_FOR_LIKE, baselines, evaluate, rest_frame_rmse_features,
                                        tactile_rmse_features)
 from tactilepipe.tool.data.loader import ToolFrames
@@ -52,7 +53,7 @@ def plan_runs(tool_train: dict, runs: list[str]) -> RunPlan:
             plan.loto[tool] = run
         else:
             by_repeat.setdefault(variant, {})[repeat] = run
-    for v in tool_train["variants"]:
+    for v in chosen_variants(tool_train["variants"]):
         reps = by_repeat.get(v, {})
         if sorted(reps) != list(range(len(reps))) or not reps:
             raise TactilepipeError(f"tool report: variant {v} has runs for repeats {sorted(reps)}; "
