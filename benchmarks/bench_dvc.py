@@ -106,7 +106,7 @@ def main() -> None:
 
         rig = root / "rig" / NEW
         t0 = time.perf_counter()
-        sh([str(BIN / "tactilepipe"), "simulate", "volume", "--override", '{"seed": 7}', "--out-dir", str(rig),
+        sh([str(BIN / "tactilepipe"), "volume-simulate", "--override", '{"seed": 7}', "--out-dir", str(rig),
             "--labels", "--jobs", "2"], wd)
         t_record = time.perf_counter() - t0
         shutil.copytree(rig, wd / "raw/volume" / NEW)

@@ -175,13 +175,13 @@ def test_generator_lists_each_stage_code_closure_and_declared_params():
     assert "src/tactilepipe/cli/drift.py" in drift_code
     assert not drift_code & {"src/tactilepipe/cli/volume.py", "src/tactilepipe/cli/tool.py"}
     assert "src/tactilepipe/cli/drift.py" not in stages["volume"]["deps"]
-    assert drift_code == set(codedeps.stage_files("cmd_simulate_drift"))
+    assert drift_code == set(codedeps.stage_files("drift-simulate"))
     assert "src/tactilepipe/tool/model/network.py" in stages["tool_models"]["deps"]
     # every rule runs `python -m tactilepipe`: the package's __main__ is code of every stage
     assert all("src/tactilepipe/__main__.py" in s["deps"] for s in stages.values())
     assert "src/tactilepipe/tool/model/network.py" not in stages["volume"]["deps"]
     # the analysis reads no simulator setting (provenance.json records them for a simulated session)
-    assert not any(k.startswith("simulate") for k in codedeps.stage_param_keys("cmd_report_drift"))
+    assert not any(k.startswith("simulate") for k in codedeps.stage_param_keys("drift-report"))
     assert "src/tactilepipe/drift/simulate.py" in stages["drift"]["deps"]   # the simulated session's provenance
     assert {"workflow/rules/drift.smk", "workflow/rules/ingest.smk", "workflow/rules/common.smk"} <= set(stages["drift"]["deps"])
     assert "tool_train.lr" in stages["tool_models"]["params"] and "tool_train" not in stages["tool_models"]["params"]

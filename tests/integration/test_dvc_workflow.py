@@ -140,7 +140,7 @@ def take_in_session(repo: dict, scene: str, session: str, simulate_flags: list[s
     into raw/<scene>/, `dvc add`ed, named in params.yaml, reproduced, committed and pushed.
     Returns dvc repro's output and the metrics diff (JSON and Markdown) against the last commit."""
     wd, rig = repo["wd"], repo["root"] / "rig"
-    run([str(BIN / "tactilepipe"), "simulate", scene, "--scale", "smoke", "--override", '{"seed": 7}',
+    run([str(BIN / "tactilepipe"), f"{scene}-simulate", "--scale", "smoke", "--override", '{"seed": 7}',
          "--out-dir", str(rig / session), *simulate_flags, "--jobs", "2"], wd)
     shutil.copytree(rig / session, wd / "raw" / scene / session)
     dvc(wd, "add", f"raw/{scene}/{session}")

@@ -240,13 +240,13 @@ def assert_one_line_error(proc: subprocess.CompletedProcess, stage: str, target:
 
 def test_full_disk_ingest_gives_one_line_and_keeps_the_old_shard(tmp_path, good_bag):
     probe = tmp_path / "probe.parquet"
-    assert cli(["ingest", str(good_bag), str(probe)]).returncode == 0
+    assert cli(["papillarray-ingest", str(good_bag), str(probe)]).returncode == 0
     size = probe.stat().st_size
     with tmpfs(tmp_path / "small", f"{max(8192, size // 2)}") as mnt:
         shard = mnt / "shard.parquet"
         shard.write_bytes(b"old shard")                       # an earlier result must survive
-        proc = cli(["ingest", str(good_bag), str(shard)])
-        assert_one_line_error(proc, "ingest", shard, "No space left on device")
+        proc = cli(["papillarray-ingest", str(good_bag), str(shard)])
+        assert_one_line_error(proc, "papillarray-ingest", shard, "No space left on device")
         assert shard.read_bytes() == b"old shard"
         assert sorted(p.name for p in mnt.iterdir()) == ["shard.parquet"]       # no temporary
 
@@ -275,8 +275,8 @@ def test_file_size_limit_gives_one_line_and_leaves_nothing(tmp_path, good_bag):
 
     out = tmp_path / "out"
     shard = out / "shard.parquet"
-    proc = cli(["ingest", str(good_bag), str(shard)], preexec=limit)
-    assert_one_line_error(proc, "ingest", shard, "File too large")
+    proc = cli(["papillarray-ingest", str(good_bag), str(shard)], preexec=limit)
+    assert_one_line_error(proc, "papillarray-ingest", shard, "File too large")
     assert list(out.iterdir()) == []
 
 
@@ -285,8 +285,8 @@ def test_read_only_results_folder(tmp_path, good_bag):
     with tmpfs(tmp_path / "ro", "1m") as mnt:
         subprocess.run(["mount", "-o", "remount,ro", str(mnt)], check=True)
         shard = mnt / "shards" / "shard.parquet"
-        proc = cli(["ingest", str(good_bag), str(shard)])
-        assert_one_line_error(proc, "ingest", shard, "Read-only file system")
+        proc = cli(["papillarray-ingest", str(good_bag), str(shard)])
+        assert_one_line_error(proc, "papillarray-ingest", shard, "Read-only file system")
         assert list(mnt.iterdir()) == []
 
 
@@ -301,9 +301,9 @@ def test_results_folder_without_write_permission(tmp_path, good_bag):
     folder.chmod(0o555)
     try:
         shard = folder / "shard.parquet"
-        proc = cli(["ingest", str(good_bag), str(shard)],
+        proc = cli(["papillarray-ingest", str(good_bag), str(shard)],
                    prefix=["setpriv", "--bounding-set=-dac_override,-dac_read_search", "--"])
-        assert_one_line_error(proc, "ingest", shard, "Permission denied")
+        assert_one_line_error(proc, "papillarray-ingest", shard, "Permission denied")
         assert list(folder.iterdir()) == []
     finally:
         folder.chmod(0o755)

@@ -79,7 +79,7 @@ def test_real_session_layouts_read_only_declared_files(tmp_path: Path, smoke_par
     wd.mkdir()
     copy_project(wd, scale="smoke")
     rig, tp = tmp_path / "rig", [str(BIN / "tactilepipe")]
-    run(tp + ["simulate", "tool", "--scale", "smoke", "--out-dir", str(rig / "tool"), "--lifts",
+    run(tp + ["tool-simulate", "--scale", "smoke", "--out-dir", str(rig / "tool"), "--trials",
               "paper_knife_p00_normal00"], wd)
     native = wd / "raw/tool/real-native"
     native.mkdir(parents=True)
@@ -88,7 +88,7 @@ def test_real_session_layouts_read_only_declared_files(tmp_path: Path, smoke_par
     public = simulate_public_session(wd / "raw/tool/real-public", smoke_params, n_trials=1)
     (wd / "raw/tool/real-ros").mkdir()
     write_ros(wd / "raw/tool/real-ros/t0.bag", "ros1")
-    run(tp + ["simulate", "drift", "--scale", "smoke", "--out-dir", str(wd / "raw/drift/real-drift")], wd)
+    run(tp + ["drift-simulate", "--scale", "smoke", "--out-dir", str(wd / "raw/drift/real-drift")], wd)
     (wd / "raw/drift/real-drift/notes.txt").write_text("room at 22 C\n")   # provenance.json hashes it too
     config = ["--config", 'tool_sessions=["real-native", "real-public", "real-ros"]', "drift_session=real-drift"]
     targets = ["results/tool/shards/real-native/t1.parquet", f"results/tool/shards/real-public/data_normal-{public[0]}.parquet",

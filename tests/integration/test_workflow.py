@@ -98,7 +98,7 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_build: Path):
         prov = json.loads((wd / f"results/{scene}/provenance.json").read_text())
         assert prov["sessions"] == {"raw/tool/sim-smoke": prov["sessions"]["raw/tool/sim-smoke"]}
         assert len(prov["sessions"]["raw/tool/sim-smoke"]) == 64
-        assert prov["stages"]["cmd_tool_train"]["params"]["tool_train"]["lr"] > 0
+        assert prov["stages"]["tool-train"]["params"]["tool_train"]["lr"] > 0
         assert set(prov["environment"]["packages"]) == {"torch", "numpy", "scikit-learn", "pandas"}
         for table in ("variants", "intervals", "differences", "paper_orderings", "per_tool", "per_window", "runtime",
                       "loto"):
@@ -220,9 +220,9 @@ def test_names_with_spaces_go_through_the_rules(tmp_path: Path):
     wd = copy_project(tmp_path / "project", scale="smoke")
     rig = tmp_path / "rig recordings"
     tp = [str(BIN / "tactilepipe")]
-    run(tp + ["simulate", "volume", "--scale", "smoke", "--out-dir", str(rig / "volume"), "--lifts", "v000_main_l00"], wd)
-    run(tp + ["simulate", "tool", "--scale", "smoke", "--out-dir", str(rig / "tool"),
-              "--lifts", "paper_knife_p00_normal00"], wd)
+    run(tp + ["volume-simulate", "--scale", "smoke", "--out-dir", str(rig / "volume"), "--lifts", "v000_main_l00"], wd)
+    run(tp + ["tool-simulate", "--scale", "smoke", "--out-dir", str(rig / "tool"),
+              "--trials", "paper_knife_p00_normal00"], wd)
     (wd / "raw/volume/real session").mkdir(parents=True)
     shutil.copy(rig / "volume/v000_main_l00.bag", wd / "raw/volume/real session/lift 0 ml.bag")
     (wd / "raw/tool/real rig").mkdir(parents=True)
@@ -262,7 +262,7 @@ def test_a_dry_run_writes_nothing_and_a_scale_round_trip_reruns_only_what_change
 
     dry = snakemake(wd, "-n", *volume, "scale=smoke_b")
     assert {"simulate_volume", "volume_dataset", "volume_report"} <= _ran(dry)
-    assert "changed-params/cmd_simulate_volume.json" in dry.stdout + dry.stderr     # the reason names the stamp
+    assert "changed-params/volume-simulate.json" in dry.stdout + dry.stderr     # the reason names the stamp
     assert run(["git", "status", "--porcelain"], wd).stdout == ""
     assert _ran(snakemake(wd, "-n", *volume, "scale=smoke")) == set()
 

@@ -638,7 +638,7 @@ TRIALS_CSV_CASES = {
     "missing": (None, "missing: a public-layout session needs trials.csv", None),
     "trial_without_a_row": ("trial,tool,orientation_deg,insertion_mm\ns0,knife,5,10\n",
                             r"no tool for 1 of 1 public trials: data_normal/t0", None),
-    # a template row (tactilepipe unpack-public writes them) not filled in: the trial lacks a tool
+    # a template row (tactilepipe study000-unpack writes them) not filled in: the trial lacks a tool
     "empty_tool": ("trial,tool,orientation_deg,insertion_mm\nt0,,5,10\n",
                    r"no tool for 1 of 1 public trials: data_normal/t0; complete their rows", None),
     "empty_pose": ("trial,tool,orientation_deg,insertion_mm\nt0,knife,,\n",

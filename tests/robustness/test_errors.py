@@ -38,14 +38,14 @@ def test_cli_bad_ros_topics_is_one_line_naming_the_parameter(tmp_path):
     out = tmp_path / "t.parquet"
     override = {"tool_ingest": {"ros_topics": {"digit_left": "/cam", "digit_right": "/cam"}}}
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(SRC), os.environ.get("PYTHONPATH", "")])}
-    proc = subprocess.run([sys.executable, "-m", "tactilepipe", "ingest-tool", str(tmp_path / "t.bag"),
+    proc = subprocess.run([sys.executable, "-m", "tactilepipe", "tool-ingest", str(tmp_path / "t.bag"),
                            "--format", "ros", "--out", str(out), "--params", str(REPO / "params.yaml"),
                            "--override", json.dumps(override)],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1, proc.stderr
-    assert lines[0].startswith("tactilepipe ingest-tool: error: topics (params.yaml tool_ingest.ros_topics): "
+    assert lines[0].startswith("tactilepipe tool-ingest: error: topics (params.yaml tool_ingest.ros_topics): "
                                "topic names must be distinct"), lines[0]
     assert "Traceback" not in proc.stderr
     assert not out.exists()

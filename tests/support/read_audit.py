@@ -42,8 +42,9 @@ ALLOWED_PREFIXES = {
 }
 # modules every stage imports to build the command line, whatever it runs: every study's command
 # module (each imports its stage's code inside the stage's function) and what they import at their
-# top, which only names choices (the tool scenes)
-PARSER_MODULES = ("src/tactilepipe/cli/", "src/tactilepipe/tool/scenes.py", "src/tactilepipe/tool/__init__.py")
+# top, which only names choices (the tool scenes, the model variants and depths)
+PARSER_MODULES = ("src/tactilepipe/cli/", "src/tactilepipe/tool/scenes.py", "src/tactilepipe/tool/__init__.py",
+                  "src/tactilepipe/tool/model/__init__.py", "src/tactilepipe/tool/model/variants.py")
 IMPORT_AUDIT_SITE = Path(__file__).parent / "import_audit"
 SIMULATED_TRIAL = re.compile(r"raw/tool/sim-[^/]+/[^/]+/meta\.json")
 

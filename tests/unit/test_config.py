@@ -118,7 +118,7 @@ def test_unusable_files(tmp_path, text, problem):
 
 def _split(tmp_path, params, *extra):
     out = tmp_path / "folds.json"
-    return out, ["split", "--params", str(params), "--dataset", str(tmp_path / "data.parquet"),
+    return out, ["volume-split", "--params", str(params), "--dataset", str(tmp_path / "data.parquet"),
                  "--out", str(out), *extra]
 
 
@@ -126,7 +126,7 @@ def _assert_one_line_error(capsys, *needles):
     captured = capsys.readouterr()
     lines = captured.err.strip().splitlines()
     assert len(lines) == 1, captured.err
-    assert lines[0].startswith("tactilepipe split: error: ")
+    assert lines[0].startswith("tactilepipe volume-split: error: ")
     for needle in needles:
         assert needle in lines[0], lines[0]
     assert "Traceback" not in captured.err
@@ -247,7 +247,7 @@ def test_declaring_a_key_that_params_yaml_lacks_is_an_error():
 
 
 def test_the_cli_hands_a_stage_its_declared_parameters_only(tmp_path):
-    args = cli.build_parser().parse_args(["report", "volume", "--in-dir", str(tmp_path)])
+    args = cli.build_parser().parse_args(["volume-report", "--in-dir", str(tmp_path)])
     from tactilepipe.cli.common import stage_params
     p = stage_params(args, "scale")
     with pytest.raises(ConfigError, match="reads parameter 'seed'"):

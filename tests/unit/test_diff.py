@@ -19,8 +19,8 @@ def _tool_run(**models) -> dict:
     metrics = {"test_train_ratio": 0.2, "splits": ["trial", "trial_r1", "trial_r2"],
                "beats_baselines": {k: True for k in models}, **{k: _model(v) for k, v in models.items()}}
     provenance = {"sessions": {"raw/tool/s": "abc"},
-                  "stages": {"cmd_tool_split": {"code_sha256": "1", "params": {"seed": 1}},
-                             "cmd_tool_train": {"code_sha256": "2", "params": {"lr": 1e-3}}}}
+                  "stages": {"tool-split": {"code_sha256": "1", "params": {"seed": 1}},
+                             "tool-train": {"code_sha256": "2", "params": {"lr": 1e-3}}}}
     return {"metrics": metrics, "provenance": provenance}
 
 
@@ -56,7 +56,7 @@ def test_a_consistent_shift_over_the_same_splits_is_signal_and_scatter_is_noise(
 def test_other_splits_are_judged_by_their_intervals():
     old = _tool_run(full=BASE, single=BASE)
     new = copy.deepcopy(old)
-    new["provenance"]["stages"]["cmd_tool_split"]["params"]["seed"] = 2        # other draws: no pairing
+    new["provenance"]["stages"]["tool-split"]["params"]["seed"] = 2        # other draws: no pairing
     new["metrics"]["full"] = _model([b + 0.05 for b in BASE[::-1]])
     new["metrics"]["single"] = _model([b + 3.0 for b in BASE])
     d = diff.compare_scene("tool_normal", old, new)

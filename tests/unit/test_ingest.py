@@ -239,11 +239,11 @@ def test_corrupt_frame_id_length_in_bag_is_an_input_error(tmp_path, sensor_strea
 def test_cli_ingest_reports_one_line_and_exit_code_2(tmp_path, good_bag, write_ros1_bag, sensor_stream, capsys, kind):
     bag, problem = _make_bad(kind, tmp_path, good_bag, write_ros1_bag, sensor_stream)
     out = tmp_path / "out" / "shard.parquet"
-    assert cli.main(["ingest", str(bag), str(out)]) == 2
+    assert cli.main(["papillarray-ingest", str(bag), str(out)]) == 2
     captured = capsys.readouterr()
     lines = captured.err.strip().splitlines()
     assert len(lines) == 1, captured.err
-    assert lines[0].startswith("tactilepipe ingest: error: ")
+    assert lines[0].startswith("tactilepipe papillarray-ingest: error: ")
     assert bag.name in lines[0] and re.search(problem, lines[0])
     assert "Traceback" not in captured.err + captured.out
     assert not out.exists() and not list(tmp_path.rglob("*.tmp"))
@@ -251,13 +251,13 @@ def test_cli_ingest_reports_one_line_and_exit_code_2(tmp_path, good_bag, write_r
 
 def test_cli_ingest_good_bag_prints_counts(tmp_path, good_bag, capsys):
     out = tmp_path / "shard.parquet"
-    assert cli.main(["ingest", str(good_bag), str(out)]) == 0
+    assert cli.main(["papillarray-ingest", str(good_bag), str(out)]) == 0
     assert '"sensors": [0, 1]' in capsys.readouterr().out
     assert out.exists()
 
 
 def test_cli_ingest_rejects_a_bag_without_shard(tmp_path, good_bag, capsys):
     out = tmp_path / "a.parquet"
-    rc = cli.main(["ingest", str(good_bag), str(out), str(good_bag)])
+    rc = cli.main(["papillarray-ingest", str(good_bag), str(out), str(good_bag)])
     assert rc == 2
     assert "error" in capsys.readouterr().err

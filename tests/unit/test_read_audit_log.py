@@ -8,7 +8,7 @@ from support import read_audit as ra
 LOG = """\
 100 execve("/usr/bin/snakemake", ["snakemake"], 0x1 /* 3 vars */) = 0
 100 clone(child_stack=NULL, flags=CLONE_VM|CLONE_VFORK <unfinished ...>
-200 execve("/venv/bin/python3", ["/venv/bin/python3", "-m", "tactilepipe", "ingest", "--override", "{\\"a\\": [\\"x\\"]}", "in.bag"], 0x2 /* 5 vars */) = 0
+200 execve("/venv/bin/python3", ["/venv/bin/python3", "-m", "tactilepipe", "papillarray-ingest", "--override", "{\\"a\\": [\\"x\\"]}", "in.bag"], 0x2 /* 5 vars */) = 0
 100 <... clone resumed>) = 200
 200 openat(AT_FDCWD, "raw/in.bag", O_RDONLY|O_CLOEXEC) = 3
 200 clone(child_stack=NULL, flags=CLONE_VM) = 201
@@ -28,4 +28,4 @@ def test_a_stage_keeps_its_reads_when_its_start_is_logged_before_the_clone_retur
     log = tmp_path / "log"
     log.write_text(LOG)
     reads = ra.stage_reads(ra.parse(log), tmp_path)
-    assert reads == {("ingest", "--override", '{"a": ["x"]}', "in.bag"): {"raw/in.bag", "raw/other.bag"}}
+    assert reads == {("papillarray-ingest", "--override", '{"a": ["x"]}', "in.bag"): {"raw/in.bag", "raw/other.bag"}}

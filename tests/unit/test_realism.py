@@ -162,7 +162,7 @@ def test_simulate_tool_stops_on_a_bad_background_with_one_line(tmp_path, capsys)
     bad = tmp_path / "bad.jpg"
     bad.write_bytes(b"not an image")
     override = json.dumps({"simulate_tool": {"render": {"background": str(bad)}}})
-    rc = cli.main(["simulate", "tool", "--params", str(REPO / "params.yaml"), "--scale", "smoke",
+    rc = cli.main(["tool-simulate", "--params", str(REPO / "params.yaml"), "--scale", "smoke",
                    "--override", override, "--out-dir", str(tmp_path / "session"), "--jobs", "2"])
     err = capsys.readouterr().err
     assert rc == 2 and str(bad) in err and "simulate_tool.render.background" in err

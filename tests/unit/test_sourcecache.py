@@ -28,33 +28,33 @@ def _forget():
 
 
 def test_closures_are_read_back_only_for_the_same_source(cache_dir, monkeypatch):
-    computed = codedeps.stage_modules("cmd_report_drift")
+    computed = codedeps.stage_modules("drift-report")
     assert "tactilepipe.drift.analyse" in computed
     stored = json.loads((cache_dir / "stage-modules.json").read_text())
     assert stored["digest"] == sourcecache.source_digest()
-    assert stored["entries"]["cmd_report_drift"] == sorted(computed)
+    assert stored["entries"]["drift-report"] == sorted(computed)
 
     # what the file says is what a new process gets, as long as the source digest matches
-    stored["entries"]["cmd_report_drift"].append("tactilepipe.marker")
+    stored["entries"]["drift-report"].append("tactilepipe.marker")
     (cache_dir / "stage-modules.json").write_text(json.dumps(stored))
     _forget()
-    assert codedeps.stage_modules("cmd_report_drift") == computed | {"tactilepipe.marker"}
+    assert codedeps.stage_modules("drift-report") == computed | {"tactilepipe.marker"}
 
     # any other source (one edited file changes the digest): recomputed and stored again
     monkeypatch.setattr(sourcecache, "source_digest", lambda: "another source")
     _forget()
-    assert codedeps.stage_modules("cmd_report_drift") == computed
+    assert codedeps.stage_modules("drift-report") == computed
     assert json.loads((cache_dir / "stage-modules.json").read_text())["digest"] == "another source"
 
 
 def test_an_unreadable_or_unwritable_cache_only_costs_time(cache_dir, monkeypatch, tmp_path):
     cache_dir.mkdir()
     (cache_dir / "stage-modules.json").write_text("{not json")
-    expected = codedeps.stage_modules("cmd_report_drift")
+    expected = codedeps.stage_modules("drift-report")
     (tmp_path / "file").write_text("a file where the cache folder should be")
     monkeypatch.setattr(sourcecache, "CACHE_DIR", tmp_path / "file")
     _forget()
-    assert codedeps.stage_modules("cmd_report_drift") == expected
+    assert codedeps.stage_modules("drift-report") == expected
     assert estimate.forward_flops("full", 18, 8, "sigmoid", 8) > 0
 
 

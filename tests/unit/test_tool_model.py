@@ -16,10 +16,10 @@ import torch
 
 from tactilepipe.core.errors import ArgumentError, TactilepipeError
 from tactilepipe.tool.data.loader import ToolFrames
-from tactilepipe.tool.model.network import (DEPTHS, MIN_IMAGE_SIZE, PAPER_WIDTH, TrimmedConv2d, build_model,
+from tactilepipe.tool.model.network import (MIN_IMAGE_SIZE, PAPER_WIDTH, TrimmedConv2d, build_model,
                                             count_parameters)
 from tactilepipe.tool.model.train import scheduled_lr, train
-from tactilepipe.tool.model.variants import VARIANTS
+from tactilepipe.tool.model.variants import DEPTHS, VARIANTS
 from tactilepipe.tool.model.inference import latency_ms, load_model, predict
 
 from support.tool_data import S, TORCH_THREADS, make_dataset, make_split_dict, quick_cfg

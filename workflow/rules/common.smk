@@ -49,7 +49,7 @@ def _repo_relative(path):
 
 
 def stage_code(stage):
-    """Source files the CLI stage function ``stage`` runs (its import closure in tactilepipe): a
+    """Source files the declared stage ``stage`` (a command name) runs (its import closure in tactilepipe): a
     rule lists them as inputs, so editing one re-runs exactly the rules that run it."""
     return [_repo_relative(codedeps.module_path(m)) for m in sorted(codedeps.stage_modules(stage))]
 
@@ -67,29 +67,25 @@ def _plain(params):
     return json.loads(json.dumps(params))
 
 
-_STAMP_GRAPH_KEYS = {}
-
-
-def param_stamp(stage, *graph_keys):
-    """An input function giving results/params/<stage>.json: the values of the parameters the CLI
-    stage declares (its only way in) and of ``graph_keys``, the ones the rules read to decide which
-    jobs exist or what their commands say. Rewritten only when the values change: a change then
-    re-runs the rule by file time, also where Snakemake has no record of earlier runs (a fresh
-    clone, a new machine), which its params trigger needs. Versioned by git beside the metrics;
-    the dvc.yaml generator reads the stage and the keys from it.
+def param_stamp(stage):
+    """An input function giving results/params/<stage>.json: the values of the parameters the stage
+    declares (its only way in) and of its declared graph keys, the ones the rules read to decide
+    which jobs exist or what their commands say (both from its `@command` declaration). Rewritten
+    only when the values change: a change then re-runs the rule by file time, also where Snakemake
+    has no record of earlier runs (a fresh clone, a new machine), which its params trigger needs.
+    Versioned by git beside the metrics; the dvc.yaml generator reads the stage and the keys from it.
 
     Evaluated when the graph is built, not when the Snakefile is read, because only then does
     Snakemake say whether this is a dry run: a dry run must not rewrite a tracked stamp, so a
     changed one is written to a scratch folder outside the project instead. Its newer time plans
     the same re-run, and Snakemake's reason names it (``changed-params/<stage>.json``)."""
-    if _STAMP_GRAPH_KEYS.setdefault(stage, graph_keys) != graph_keys:
-        raise WorkflowError(f"param_stamp('{stage}') is declared with two different sets of graph keys")
+    codedeps.stage_param_keys(stage)          # an undeclared stage stops the workflow as it is read
     return lambda wildcards: stamp_file(stage)
 
 
 def _stamp_text(stage):
     keys = codedeps.stage_param_keys(stage)
-    graph_keys = _STAMP_GRAPH_KEYS.get(stage, ())
+    graph_keys = codedeps.stage_graph_keys(stage)
     stamp = {"stage": stage, "declared": list(keys), "graph": list(graph_keys),
              "values": deep_merge(_plain(declared(P, keys, stage)), _plain(declared(P, graph_keys, "workflow")))}
     return json.dumps(stamp, indent=1, sort_keys=True) + "\n"
@@ -249,15 +245,15 @@ DRIFT_TARGETS = [f"{DRIFT}/metrics.json", f"{DRIFT}/provenance.json", f"{DRIFT}/
 
 
 def provenance_stages(scene, simulator="if simulated"):
-    """The CLI stages that make a scene's numbers (the simulator's too when a session is
+    """The stages that make a scene's numbers (the simulator's too when a session is
     simulated, or with simulator="always") and the scene's raw session folders."""
-    stages_of = {"volume": ["cmd_ingest", "cmd_dataset", "cmd_split", "cmd_train", "cmd_gridsearch", "cmd_baseline",
-                            "cmd_report_volume"],
-                 "drift": ["cmd_ingest", "cmd_report_drift"],
-                 "tool": ["cmd_ingest_tool", "cmd_tool_dataset", "cmd_tool_split", "cmd_tool_train", "cmd_tool_report"]}
+    stages_of = {"volume": ["papillarray-ingest", "volume-dataset", "volume-split", "volume-train", "volume-gridsearch",
+                            "volume-baseline", "volume-report"],
+                 "drift": ["papillarray-ingest", "drift-report"],
+                 "tool": ["tool-ingest", "tool-dataset", "tool-split", "tool-train", "tool-model-report"]}
     kind = scene if scene in ("volume", "drift") else "tool"
     sessions = [DRIFT_SESSION] if kind == "drift" else P[f"{kind}_sessions"]
-    simulator_of = {"volume": "cmd_simulate_volume", "drift": "cmd_simulate_drift", "tool": "cmd_simulate_tool"}
+    simulator_of = {"volume": "volume-simulate", "drift": "drift-simulate", "tool": "tool-simulate"}
     simulated = simulator == "always" or any(is_simulated(s) for s in sessions)
     stages = ([simulator_of[kind]] if simulated else []) + stages_of[kind]
     return stages, [f"raw/{kind}/{s}" for s in sessions]

@@ -5,8 +5,8 @@ rule drift_report:
     input:
         shards=drift_shards(),
         meta=f"raw/drift/{DRIFT_SESSION}/session.json",
-        code=stage_code("cmd_report_drift"),
-        params=param_stamp("cmd_report_drift", "drift_session"),
+        code=stage_code("drift-report"),
+        params=param_stamp("drift-report"),
         raw=drift_raw_inputs(),
         provenance=lambda w: provenance_inputs("drift"),
     output:
@@ -20,5 +20,5 @@ rule drift_report:
     log:
         f"{LOGS}/drift/report.log",
     shell:
-        "{CLI} report drift {PARAMS_ARGS} --in-dir {DRIFT:q} --session-meta {input.meta:q} "
+        "{CLI} drift-report {PARAMS_ARGS} --in-dir {DRIFT:q} --session-meta {input.meta:q} "
         "--shards {input.shards:q} {params.provenance} 2> {log:q}"

@@ -10,8 +10,8 @@ localrules:
 rule ingest_papillarray:
     input:
         bag="raw/{scene}/{session}/{stem}.bag",
-        code=stage_code("cmd_ingest"),
-        params=param_stamp("cmd_ingest"),
+        code=stage_code("papillarray-ingest"),
+        params=param_stamp("papillarray-ingest"),
     output:
         "results/{scene}/shards/{session}/{stem}.parquet",
     wildcard_constraints:
@@ -21,4 +21,4 @@ rule ingest_papillarray:
     log:
         f"{LOGS}/ingest/{{scene}}/{{session}}/{{stem}}.log",
     shell:
-        "{CLI} ingest {input.bag:q} {output:q} > {log:q} 2>&1"
+        "{CLI} papillarray-ingest {input.bag:q} {output:q} > {log:q} 2>&1"

@@ -6,8 +6,8 @@ REGIMES = "results/volume_regimes"
 
 rule volume_regimes:
     input:
-        code=stage_code("cmd_volume_regimes"),
-        params=param_stamp("cmd_volume_regimes"),
+        code=stage_code("volume-regimes"),
+        params=param_stamp("volume-regimes"),
     output:
         table=f"{REGIMES}/table1_regimes.csv",
         markdown=f"{REGIMES}/table1_regimes.md",

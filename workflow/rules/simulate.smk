@@ -3,8 +3,8 @@
 
 rule simulate_volume:
     input:
-        code=stage_code("cmd_simulate_volume"),
-        params=param_stamp("cmd_simulate_volume"),
+        code=stage_code("volume-simulate"),
+        params=param_stamp("volume-simulate"),
     output:
         bags=[f"raw/volume/{{session}}/{stem}.bag" for stem in volume_bag_stems("sim-")],
         labels="raw/volume/{session}/lifts.csv",
@@ -18,13 +18,13 @@ rule simulate_volume:
     log:
         f"{LOGS}/simulate_volume/{{session}}.log",
     shell:
-        "{CLI} simulate volume {PARAMS_ARGS} --out-dir {params.out_dir:q} --labels --jobs {threads} 2> {log:q}"
+        "{CLI} volume-simulate {PARAMS_ARGS} --out-dir {params.out_dir:q} --labels --jobs {threads} 2> {log:q}"
 
 
 rule simulate_drift:
     input:
-        code=stage_code("cmd_simulate_drift"),
-        params=param_stamp("cmd_simulate_drift"),
+        code=stage_code("drift-simulate"),
+        params=param_stamp("drift-simulate"),
     output:
         bags=[f"raw/drift/{{session}}/{name}.bag" for name in drift_plan(P)],
         meta="raw/drift/{session}/session.json",
@@ -38,4 +38,4 @@ rule simulate_drift:
     log:
         f"{LOGS}/simulate_drift/{{session}}.log",
     shell:
-        "{CLI} simulate drift {PARAMS_ARGS} --out-dir {params.out_dir:q} --jobs {threads} 2> {log:q}"
+        "{CLI} drift-simulate {PARAMS_ARGS} --out-dir {params.out_dir:q} --jobs {threads} 2> {log:q}"

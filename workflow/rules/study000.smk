@@ -12,8 +12,8 @@ STUDY000_RUNS = ["full_public_frame", "full_trial"]
 rule study000_protocols:
     input:
         evals=expand("results/tool_normal/models/{run}/eval.json", run=STUDY000_RUNS),
-        code=stage_code("cmd_study000_table"),
-        params=param_stamp("cmd_study000_table"),
+        code=stage_code("study000-table"),
+        params=param_stamp("study000-table"),
     output:
         table=f"{STUDY000}/protocols.csv",
         markdown=f"{STUDY000}/protocols.md",
@@ -32,8 +32,8 @@ rule study000_evaluate_published:
     input:
         checkpoint="raw/downloads/best_model_normal.pth",
         data=expand("results/tool_normal/data/{f}", f=["frames.npy", "references.npy", "samples.parquet"]),
-        code=stage_code("cmd_tool_evaluate"),
-        params=param_stamp("cmd_tool_evaluate"),
+        code=stage_code("tool-evaluate"),
+        params=param_stamp("tool-evaluate"),
     output:
         evaluation=f"{STUDY000}/published_normal/eval.json",
         predictions=f"{STUDY000}/published_normal/predictions.parquet",
@@ -52,8 +52,8 @@ rule study000_evaluate_published:
 rule study000_published:
     input:
         evaluation=rules.study000_evaluate_published.output.evaluation,
-        code=stage_code("cmd_study000_table"),
-        params=param_stamp("cmd_study000_table"),
+        code=stage_code("study000-table"),
+        params=param_stamp("study000-table"),
     output:
         table=f"{STUDY000}/published.csv",
         markdown=f"{STUDY000}/published.md",

@@ -8,8 +8,8 @@ SPLIT_NAME = "(frame|public_frame|trial|lopo)(_r[1-9][0-9]*)?|loto_[A-Za-z0-9_-]
 rule simulate_tool:
     input:
         background=tool_background_frame(),
-        code=stage_code("cmd_simulate_tool"),
-        params=param_stamp("cmd_simulate_tool"),
+        code=stage_code("tool-simulate"),
+        params=param_stamp("tool-simulate"),
     output:
         cal="raw/tool/{session}/nano17.cal",
         meta=[f"raw/tool/{{session}}/{name}/meta.json" for name in tool_trial_names("sim-")],
@@ -23,14 +23,14 @@ rule simulate_tool:
     log:
         f"{LOGS}/simulate_tool/{{session}}.log",
     shell:
-        "{CLI} simulate tool {PARAMS_ARGS} --out-dir {params.out_dir:q} --jobs {threads} 2> {log:q}"
+        "{CLI} tool-simulate {PARAMS_ARGS} --out-dir {params.out_dir:q} --jobs {threads} 2> {log:q}"
 
 
 rule ingest_tool:
     input:
         trial=tool_trial_input,
-        code=stage_code("cmd_ingest_tool"),
-        params=param_stamp("cmd_ingest_tool"),
+        code=stage_code("tool-ingest"),
+        params=param_stamp("tool-ingest"),
     output:
         "results/tool/shards/{session}/{trial}.parquet",
     params:
@@ -41,14 +41,14 @@ rule ingest_tool:
     log:
         f"{LOGS}/ingest_tool/{{session}}/{{trial}}.log",
     shell:
-        "{CLI} ingest-tool {PARAMS_ARGS} {params.path:q} --format {params.fmt} --out {output:q} > {log:q} 2>&1"
+        "{CLI} tool-ingest {PARAMS_ARGS} {params.path:q} --format {params.fmt} --out {output:q} > {log:q} 2>&1"
 
 
 rule tool_clock_figure:
     input:
         shards=lambda w: [f"results/tool/shards/{w.session}/{name}.parquet" for name in tool_trial_names(w.session)],
-        code=stage_code("cmd_tool_clock_figure"),
-        params=param_stamp("cmd_tool_clock_figure"),
+        code=stage_code("tool-clock-figure"),
+        params=param_stamp("tool-clock-figure"),
     output:
         "results/tool/qc/{session}_clock_sync.png",
     resources:
@@ -62,8 +62,8 @@ rule tool_clock_figure:
 rule tool_dataset:
     input:
         shards=lambda w: tool_shards(scene_label(w.scene)),
-        code=stage_code("cmd_tool_dataset"),
-        params=param_stamp("cmd_tool_dataset", "tool_sessions"),
+        code=stage_code("tool-dataset"),
+        params=param_stamp("tool-dataset"),
     output:
         frames="results/{scene}/data/frames.npy",
         references="results/{scene}/data/references.npy",
@@ -91,8 +91,8 @@ localrules:
 rule tool_split:
     input:
         samples="results/{scene}/data/samples.parquet",
-        code=stage_code("cmd_tool_split"),
-        params=param_stamp("cmd_tool_split"),
+        code=stage_code("tool-split"),
+        params=param_stamp("tool-split"),
     output:
         "results/{scene}/splits/{split}.json",
     wildcard_constraints:
@@ -113,8 +113,8 @@ rule tool_data_report:
     input:
         data=rules.tool_dataset.output,
         raw=lambda w: tool_raw_inputs(scene_label(w.scene)),
-        code=stage_code("cmd_report_tool_data"),
-        params=param_stamp("cmd_report_tool_data"),
+        code=stage_code("tool-data-report"),
+        params=param_stamp("tool-data-report"),
     output:
         qc=reported(["results/{scene}/qc.md"], "{scene}")[0],
         figures=reported(expand("results/{{scene}}/figures/{fig}.png", fig=TOOL_DATA_FIGURES), "{scene}"),
@@ -125,7 +125,7 @@ rule tool_data_report:
     log:
         f"{LOGS}/{{scene}}/data_report.log",
     shell:
-        "{CLI} report {wildcards.scene} {PARAMS_ARGS} --in-dir results/{wildcards.scene} 2> {log:q}"
+        "{CLI} tool-data-report {PARAMS_ARGS} --scene {wildcards.scene} --in-dir results/{wildcards.scene} 2> {log:q}"
 
 
 rule tool_data:
@@ -153,8 +153,8 @@ rule tool_train:
     input:
         data=rules.tool_dataset.output,
         split=lambda w: f"results/{w.scene}/splits/{run_spec(w.run)[1]}.json",
-        code=stage_code("cmd_tool_train"),
-        params=param_stamp("cmd_tool_train"),
+        code=stage_code("tool-train"),
+        params=param_stamp("tool-train"),
     output:
         evaluation="results/{scene}/models/{run}/eval.json",
         predictions="results/{scene}/models/{run}/predictions.parquet",
@@ -183,9 +183,8 @@ rule tool_model_report:
         splits=lambda w: [f"results/{w.scene}/splits/{run_spec(r)[1]}.json" for r in tool_runs(w.scene)],
         data=rules.tool_dataset.output,
         raw=tool_session_files(),
-        code=stage_code("cmd_tool_report"),
-        params=param_stamp("cmd_tool_report", "tool_sessions", "tool_train.split", "tool_train.depth",
-                           "tool_train.image_size", "tool_train.sweep", "tool_train.loto", "tool_split.repeats"),
+        code=stage_code("tool-model-report"),
+        params=param_stamp("tool-model-report"),
         provenance=lambda w: provenance_inputs(w.scene),
     output:
         metrics=reported(["results/{scene}/metrics.json"], "{scene}")[0],
@@ -203,5 +202,5 @@ rule tool_model_report:
     log:
         "results/logs/{scene}/model_report.log",
     shell:
-        "{CLI} tool-report {PARAMS_ARGS} --scene {wildcards.scene} --in-dir results/{wildcards.scene} "
+        "{CLI} tool-model-report {PARAMS_ARGS} --scene {wildcards.scene} --in-dir results/{wildcards.scene} "
         "--runs {params.runs} {params.provenance} 2> {log:q}"

@@ -5,8 +5,8 @@ rule volume_dataset:
     input:
         shards=volume_shards(),
         labels=[f"raw/volume/{s}/lifts.csv" for s in P["volume_sessions"]],
-        code=stage_code("cmd_dataset"),
-        params=param_stamp("cmd_dataset"),
+        code=stage_code("volume-dataset"),
+        params=param_stamp("volume-dataset"),
     output:
         data=f"{VOLUME}/dataset.parquet",
         qc=f"{VOLUME}/qc.csv",
@@ -15,7 +15,7 @@ rule volume_dataset:
     log:
         f"{LOGS}/volume/dataset.log",
     shell:
-        "{CLI} dataset {PARAMS_ARGS} --out {output.data:q} --qc {output.qc:q} 2> {log:q}"
+        "{CLI} volume-dataset {PARAMS_ARGS} --out {output.data:q} --qc {output.qc:q} 2> {log:q}"
 
 
 # a second's work on the dataset table: on a cluster it runs where Snakemake runs (as tool_split)
@@ -26,8 +26,8 @@ localrules:
 rule volume_split:
     input:
         data=f"{VOLUME}/dataset.parquet",
-        code=stage_code("cmd_split"),
-        params=param_stamp("cmd_split"),
+        code=stage_code("volume-split"),
+        params=param_stamp("volume-split"),
     output:
         f"{VOLUME}/folds.json",
     resources:
@@ -35,15 +35,15 @@ rule volume_split:
     log:
         f"{LOGS}/volume/split.log",
     shell:
-        "{CLI} split {PARAMS_ARGS} --dataset {input.data:q} --out {output:q} 2> {log:q}"
+        "{CLI} volume-split {PARAMS_ARGS} --dataset {input.data:q} --out {output:q} 2> {log:q}"
 
 
 rule volume_train:
     input:
         data=f"{VOLUME}/dataset.parquet",
         folds=f"{VOLUME}/folds.json",
-        code=stage_code("cmd_train"),
-        params=param_stamp("cmd_train"),
+        code=stage_code("volume-train"),
+        params=param_stamp("volume-train"),
     output:
         predictions=f"{VOLUME}/mlp/{{modality}}/predictions.parquet",
         folds=f"{VOLUME}/mlp/{{modality}}/folds.csv",
@@ -54,7 +54,7 @@ rule volume_train:
     log:
         f"{LOGS}/volume/train_{{modality}}.log",
     shell:
-        "{CLI} train {PARAMS_ARGS} --modality {wildcards.modality:q} --dataset {input.data:q} "
+        "{CLI} volume-train {PARAMS_ARGS} --modality {wildcards.modality:q} --dataset {input.data:q} "
         "--folds {input.folds:q} --out-dir {params.out_dir:q} 2> {log:q}"
 
 
@@ -62,8 +62,8 @@ rule volume_gridsearch:
     input:
         data=f"{VOLUME}/dataset.parquet",
         folds=f"{VOLUME}/folds.json",
-        code=stage_code("cmd_gridsearch"),
-        params=param_stamp("cmd_gridsearch"),
+        code=stage_code("volume-gridsearch"),
+        params=param_stamp("volume-gridsearch"),
     output:
         f"{VOLUME}/mlp/grid.csv",
     resources:
@@ -71,15 +71,15 @@ rule volume_gridsearch:
     log:
         f"{LOGS}/volume/gridsearch.log",
     shell:
-        "{CLI} gridsearch {PARAMS_ARGS} --dataset {input.data:q} --folds {input.folds:q} --out {output:q} 2> {log:q}"
+        "{CLI} volume-gridsearch {PARAMS_ARGS} --dataset {input.data:q} --folds {input.folds:q} --out {output:q} 2> {log:q}"
 
 
 rule volume_baseline:
     input:
         data=f"{VOLUME}/dataset.parquet",
         folds=f"{VOLUME}/folds.json",
-        code=stage_code("cmd_baseline"),
-        params=param_stamp("cmd_baseline"),
+        code=stage_code("volume-baseline"),
+        params=param_stamp("volume-baseline"),
     output:
         predictions=f"{VOLUME}/baseline/predictions.parquet",
         folds=f"{VOLUME}/baseline/folds.csv",
@@ -90,7 +90,7 @@ rule volume_baseline:
     log:
         f"{LOGS}/volume/baseline.log",
     shell:
-        "{CLI} baseline {PARAMS_ARGS} --dataset {input.data:q} --folds {input.folds:q} "
+        "{CLI} volume-baseline {PARAMS_ARGS} --dataset {input.data:q} --folds {input.folds:q} "
         "--out-dir {VOLUME:q}/baseline 2> {log:q}"
 
 
@@ -103,8 +103,8 @@ rule volume_report:
         qc=f"{VOLUME}/qc.csv",
         shards=volume_shards(),
         raw=volume_raw_inputs(),
-        code=stage_code("cmd_report_volume"),
-        params=param_stamp("cmd_report_volume"),
+        code=stage_code("volume-report"),
+        params=param_stamp("volume-report"),
         provenance=lambda w: provenance_inputs("volume"),
     output:
         reported(VOLUME_TARGETS, "volume"),
@@ -115,4 +115,4 @@ rule volume_report:
     log:
         f"{LOGS}/volume/report.log",
     shell:
-        "{CLI} report volume {PARAMS_ARGS} --in-dir {VOLUME:q} {params.provenance} 2> {log:q}"
+        "{CLI} volume-report {PARAMS_ARGS} --in-dir {VOLUME:q} {params.provenance} 2> {log:q}"

@@ -208,11 +208,11 @@ def study000() -> str:
     stages = {}
     for kind in ("normal", "shear"):
         stages[f"unpack_{kind}"] = {
-            "cmd": f"tactilepipe unpack-public raw/downloads/data_{kind}.zip --name data_{kind}",
-            "deps": [f"raw/downloads/data_{kind}.zip"] + code("cmd_unpack_public"),
+            "cmd": f"tactilepipe study000-unpack raw/downloads/data_{kind}.zip --name data_{kind}",
+            "deps": [f"raw/downloads/data_{kind}.zip"] + code("study000-unpack"),
             "params": [f"public_data.files.data_{kind}", "public_data.session"],
             "outs": [f"{session}/data_{kind}"]}
-    data_stages = ("cmd_ingest_tool", "cmd_tool_dataset", "cmd_tool_split")
+    data_stages = ("tool-ingest", "tool-dataset", "tool-split")
     stages["data"] = {
         "cmd": f"{SMK} results/tool_normal/data/samples.parquet results/tool_normal/splits/public_frame.json "
                f"results/tool_normal/splits/trial.json",
@@ -222,7 +222,7 @@ def study000() -> str:
     stages["protocols"] = {
         "cmd": f"{SMK} study000_protocols",
         "deps": ["results/tool_normal/data", "results/tool_normal/splits"]
-                + code("cmd_tool_train", "cmd_study000_table") + RULE_FILES,
+                + code("tool-train", "study000-table") + RULE_FILES,
         "params": ["scale", "seed", "tool_train", "public_data.paper", "scales.${scale}"],
         "outs": [{"results/tool_normal/models": {"persist": True}}, "results/study000/protocols.csv",
                  "results/study000/protocols.md"],
@@ -230,7 +230,7 @@ def study000() -> str:
     stages["published"] = {
         "cmd": f"{SMK} study000_published",
         "deps": ["raw/downloads/best_model_normal.pth", "results/tool_normal/data"]
-                + code("cmd_tool_evaluate", "cmd_study000_table") + RULE_FILES,
+                + code("tool-evaluate", "study000-table") + RULE_FILES,
         "params": ["tool_train.device", "public_data.files.best_model_normal", "public_data.paper"],
         "outs": ["results/study000/published_normal", "results/study000/published.csv",
                  "results/study000/published.md"]}

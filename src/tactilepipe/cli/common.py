@@ -23,9 +23,9 @@ def param_overrides(args) -> dict:
 
 def stage_params(args, *keys: str) -> dict:
     """The stage's parameters: params.yaml (+ --override), resolved for the scale, cut down to
-    ``keys`` (dotted, e.g. "tool_train.lr"). These keys are the stage's only way in: reading any
-    other key raises, and the workflow reads the same keys (codedeps.stage_param_keys) to decide
-    what a parameter change re-runs, so the two cannot drift apart."""
+    ``keys`` (dotted, e.g. "tool_train.lr": the ``params`` of its declaration). These keys are the
+    stage's only way in: reading any other key raises, and the workflow stamps the same keys
+    (codedeps.stage_param_keys) to decide what a parameter change re-runs."""
     from tactilepipe.core.config import declared, load_params
     return declared(load_params(args.params, param_overrides(args)), keys, f"tactilepipe {args.command}")
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import sys
 
+from tactilepipe.cli.registry import arg, command
 from tactilepipe.core.errors import ArgumentError
 
 
@@ -20,7 +21,20 @@ def _tolerances(items: list[str]) -> dict[str, float]:
     return out
 
 
-def cmd_diff(args) -> int:
+@command("diff", "compare the metrics of two runs (git revisions, DVC experiments or the workspace), each change "
+                 "classed as signal or noise",
+         args=(arg("revs", nargs="*", metavar="RUN",
+                   help="none: HEAD against the workspace; one: it against the workspace; two: the first against "
+                        "the second. A git revision or a DVC experiment's name"),
+               arg("--scenes", nargs="+", help="only these scenes (default: every scene)"),
+               arg("--fail-on", nargs="+", default=[], metavar="METRIC=TOL",
+                   help="exit 1 when a metric (mae, rmse, r2, or a value's last name) of any model got worse by "
+                        "more than TOL, e.g. --fail-on mae=0.05 r2=0.01"),
+               arg("--json", action="store_true", help="JSON instead of Markdown"),
+               arg("--all", action="store_true", help="also list what did not change"),
+               arg("--out", help="write the report here instead of standard output"),
+               arg("--repo", default=".", help="the project (default: here)")))
+def cmd_diff(args, p) -> int:
     from tactilepipe.core.atomic import write_text
     from tactilepipe.pipeline import diff
     if len(args.revs) > 2:
@@ -51,7 +65,10 @@ def cmd_diff(args) -> int:
     return 1 if failed else 0
 
 
-def cmd_verify_data(args) -> int:
+@command("verify-data", "re-hash every file DVC tracks (dvc.lock, .dvc files) and name those whose content "
+                        "differs from the record (dvc status trusts file times)",
+         args=(arg("--repo", default=".", help="the project (default: here)"),))
+def cmd_verify_data(args, p) -> int:
     from tactilepipe.pipeline.verify import verify_workspace
     checked, problems = verify_workspace(args.repo)
     for line in problems:
@@ -60,25 +77,3 @@ def cmd_verify_data(args) -> int:
           + ("" if not problems else " (dvc checkout --relink restores them from a sound cache; dvc pull from the "
                                      "remote when the cache is corrupt too)"))
     return 1 if problems else 0
-
-
-def add_parsers(sub, common, provenance) -> None:
-    s = sub.add_parser("diff", help="compare the metrics of two runs (git revisions, DVC experiments or the "
-                                    "workspace), each change classed as signal or noise")
-    s.add_argument("revs", nargs="*", metavar="RUN",
-                   help="none: HEAD against the workspace; one: it against the workspace; two: the first "
-                        "against the second. A git revision or a DVC experiment's name")
-    s.add_argument("--scenes", nargs="+", help="only these scenes (default: every scene)")
-    s.add_argument("--fail-on", nargs="+", default=[], metavar="METRIC=TOL",
-                   help="exit 1 when a metric (mae, rmse, r2, or a value's last name) of any model got worse "
-                        "by more than TOL, e.g. --fail-on mae=0.05 r2=0.01")
-    s.add_argument("--json", action="store_true", help="JSON instead of Markdown")
-    s.add_argument("--all", action="store_true", help="also list what did not change")
-    s.add_argument("--out", help="write the report here instead of standard output")
-    s.add_argument("--repo", default=".", help="the project (default: here)")
-    s.set_defaults(func=cmd_diff)
-
-    s = sub.add_parser("verify-data", help="re-hash every file DVC tracks (dvc.lock, .dvc files) and name those whose "
-                                           "content differs from the record (dvc status trusts file times)")
-    s.add_argument("--repo", default=".", help="the project (default: here)")
-    s.set_defaults(func=cmd_verify_data)

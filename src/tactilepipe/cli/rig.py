@@ -6,13 +6,41 @@ import argparse
 import sys
 from pathlib import Path
 
-from tactilepipe.cli.common import stage_params
+from tactilepipe.cli.registry import arg, command
 
 CAMERA_HELP = "a /dev/video* node, the DIGIT's serial number (e.g. D20262), or a video file / image sequence " \
               "(frame_%%06d.png) played at the mode's rate"
 
+# Written out here, not imported: every CLI call builds every parser, and a pipeline stage must not
+# load the rig's modules (OpenCV capture, pyserial). tests/unit/test_rig_devices.py keeps both in
+# step with rig/cameras.py and rig/arduino.py.
+MODE_NAMES = ("qvga60", "qvga30", "vga30", "vga15")
+DEFAULT_BAUD = 115200
 
-def cmd_record(args) -> int | None:
+
+@command("record", "record trials in the rig's layout from two DIGITs and the Nano17's Arduino",
+         description="Record one trial, or a series with a prompt between trials, into SESSION (raw/tool/<session>/, "
+                     "the rig's layout: docs/rig.md). A trial that stops half-way is set aside under "
+                     "raw/tool/incomplete/<session>/, never added.",
+         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+         args=(arg("--list-digits", action="store_true", help="list the DIGITs plugged in (serial, node) and exit"),
+               arg("--session", help="session folder, e.g. raw/tool/2026-11-26-screwdrivers"),
+               arg("--left", help=f"left finger's camera: {CAMERA_HELP}"),
+               arg("--right", help=f"right finger's camera: {CAMERA_HELP}"),
+               arg("--mode", choices=MODE_NAMES, default="qvga60", help="DIGIT stream mode (width x height @ fps)"),
+               arg("--port", help="the Arduino's serial port, e.g. /dev/ttyACM0"),
+               arg("--baud", type=int, default=DEFAULT_BAUD, help="the firmware's baud rate"),
+               arg("--calibration", help="the Nano17's ATI .cal file (copied into the session once)"),
+               arg("--tool", help="tool name: lowercase letters, digits and _ (e.g. screwdriver_1)"),
+               arg("--kind", choices=["normal", "shear"], help="pressing (normal) or sliding (shear) trials"),
+               arg("--orientation-deg", type=float, default=0.0, help="tilt of the tool axis in the grasp"),
+               arg("--insertion-mm", type=float, default=0.0,
+                   help="mm from the gel's fingertip edge to the butt end of the handle"),
+               arg("--seconds", type=float, help="length of each trial"),
+               arg("--trials", type=int, default=1, help="how many trials to record, with a prompt before each"),
+               arg("--trial", help="the trial's name (default: <tool>_<kind>_<NNN>, the next free number)"),
+               arg("--no-prompt", action="store_true", help="start each trial at once (no Enter)")))
+def cmd_record(args, p) -> int | None:
     from tactilepipe.rig.cameras import list_digits
     if args.list_digits:
         digits = list_digits()
@@ -55,11 +83,24 @@ def cmd_record(args) -> int | None:
     return None
 
 
-def cmd_live(args) -> int | None:
+@command("live", "estimate the tool force live from the two DIGITs",
+         description="Load a trained checkpoint, take the zero-force reference pair, then estimate the force for "
+                     "every frame pair the cameras deliver; print it with its latency and log it (docs/rig.md).",
+         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+         params=("tool_ingest.image_size", "predict"),
+         args=(arg("--checkpoint", required=True, help="e.g. results/tool_normal/models/full/best.pt"),
+               arg("--left", required=True, help=f"left finger's camera: {CAMERA_HELP}"),
+               arg("--right", required=True, help=f"right finger's camera: {CAMERA_HELP}"),
+               arg("--mode", choices=MODE_NAMES, default="qvga60", help="DIGIT stream mode"),
+               arg("--seconds", type=float, default=60.0, help="how long to run"),
+               arg("--log", default="live/estimates.csv", help="the log of (host_ns, frames, estimate, latency)"),
+               arg("--reference", help="a reference.npz saved by an earlier run, instead of taking one at start"),
+               arg("--label-range", nargs=2, type=float, metavar=("MIN_N", "MAX_N"),
+                   help="a public-code normal-force checkpoint: the force range its outputs were scaled to")))
+def cmd_live(args, p) -> int | None:
     from tactilepipe.rig.cameras import resolve_source
     from tactilepipe.rig.live import run_live
     from tactilepipe.tool.model.stream import prepare_process
-    p = stage_params(args, "tool_ingest.image_size", "predict")
     prepare_process(p)                               # before torch loads: the portable pins are read then
     print("keep the fingers out of contact: the first frame pair is the zero-force reference"
           if args.reference is None else f"reference pair from {args.reference}", file=sys.stderr)
@@ -67,52 +108,3 @@ def cmd_live(args) -> int | None:
                        args.seconds, Path(args.log), Path(args.reference) if args.reference else None,
                        args.label_range)
     return 0 if summary.pairs else 1
-
-
-# Written out here, not imported: every CLI call builds every parser, and a pipeline stage must not
-# load the rig's modules (OpenCV capture, pyserial). tests/unit/test_rig_devices.py keeps both in
-# step with rig/cameras.py and rig/arduino.py.
-MODE_NAMES = ("qvga60", "qvga30", "vga30", "vga15")
-DEFAULT_BAUD = 115200
-
-
-def add_parsers(sub, common, provenance) -> None:
-    s = sub.add_parser("record", help="record trials in the rig's layout from two DIGITs and the Nano17's Arduino",
-                       description="Record one trial, or a series with a prompt between trials, into SESSION "
-                                   "(raw/tool/<session>/, the rig's layout: docs/rig.md). A trial that stops "
-                                   "half-way is set aside under raw/tool/incomplete/<session>/, never added.",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    s.add_argument("--list-digits", action="store_true", help="list the DIGITs plugged in (serial, node) and exit")
-    s.add_argument("--session", help="session folder, e.g. raw/tool/2026-11-26-screwdrivers")
-    s.add_argument("--left", help=f"left finger's camera: {CAMERA_HELP}")
-    s.add_argument("--right", help=f"right finger's camera: {CAMERA_HELP}")
-    s.add_argument("--mode", choices=MODE_NAMES, default="qvga60", help="DIGIT stream mode (width x height @ fps)")
-    s.add_argument("--port", help="the Arduino's serial port, e.g. /dev/ttyACM0")
-    s.add_argument("--baud", type=int, default=DEFAULT_BAUD, help="the firmware's baud rate")
-    s.add_argument("--calibration", help="the Nano17's ATI .cal file (copied into the session once)")
-    s.add_argument("--tool", help="tool name: lowercase letters, digits and _ (e.g. screwdriver_1)")
-    s.add_argument("--kind", choices=["normal", "shear"], help="pressing (normal) or sliding (shear) trials")
-    s.add_argument("--orientation-deg", type=float, default=0.0, help="tilt of the tool axis in the grasp")
-    s.add_argument("--insertion-mm", type=float, default=0.0,
-                   help="mm from the gel's fingertip edge to the butt end of the handle")
-    s.add_argument("--seconds", type=float, help="length of each trial")
-    s.add_argument("--trials", type=int, default=1, help="how many trials to record, with a prompt before each")
-    s.add_argument("--trial", help="the trial's name (default: <tool>_<kind>_<NNN>, the next free number)")
-    s.add_argument("--no-prompt", action="store_true", help="start each trial at once (no Enter)")
-    s.set_defaults(func=cmd_record)
-
-    s = sub.add_parser("live", parents=[common], help="estimate the tool force live from the two DIGITs",
-                       description="Load a trained checkpoint, take the zero-force reference pair, then estimate "
-                                   "the force for every frame pair the cameras deliver; print it with its latency "
-                                   "and log it (docs/rig.md).",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    s.add_argument("--checkpoint", required=True, help="e.g. results/tool_normal/models/full/best.pt")
-    s.add_argument("--left", required=True, help=f"left finger's camera: {CAMERA_HELP}")
-    s.add_argument("--right", required=True, help=f"right finger's camera: {CAMERA_HELP}")
-    s.add_argument("--mode", choices=MODE_NAMES, default="qvga60", help="DIGIT stream mode")
-    s.add_argument("--seconds", type=float, default=60.0, help="how long to run")
-    s.add_argument("--log", default="live/estimates.csv", help="the log of (host_ns, frames, estimate, latency)")
-    s.add_argument("--reference", help="a reference.npz saved by an earlier run, instead of taking one at start")
-    s.add_argument("--label-range", nargs=2, type=float, metavar=("MIN_N", "MAX_N"),
-                   help="a public-code normal-force checkpoint: the force range its outputs were scaled to")
-    s.set_defaults(func=cmd_live)

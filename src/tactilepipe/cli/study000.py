@@ -7,14 +7,18 @@ import json
 import sys
 from pathlib import Path
 
-from tactilepipe.cli.common import stage_params
+from tactilepipe.cli.registry import arg, command
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.tool.scenes import TOOL_SCENES
 
 
-def cmd_unpack_public(args) -> None:
+@command("study000-unpack", "check a study-000 archive's size and sha256, unpack it into a public-layout session",
+         params=("public_data.files", "public_data.session"),
+         args=(arg("archive", help="e.g. raw/downloads/data_normal.zip"),
+               arg("--name", required=True, help="its entry in params.yaml public_data.files (data_normal, data_shear)"),
+               arg("--raw-root", default="raw/tool", help="the session folder public_data.session is made here")))
+def cmd_study000_unpack(args, p) -> None:
     from tactilepipe.tool.formats.public_archive import unpack, verify_listed, write_trials_template
-    p = stage_params(args, "public_data.files", "public_data.session")
     verify_listed(args.archive, p["public_data"]["files"], args.name, "--name")
     session = Path(args.raw_root) / p["public_data"]["session"]
     trials = unpack(args.archive, args.name, session)
@@ -26,9 +30,19 @@ def cmd_unpack_public(args) -> None:
               f"insertion_mm) before the scene can be built", file=sys.stderr)
 
 
-def cmd_tool_evaluate(args) -> None:
+@command("tool-evaluate", "evaluate a checkpoint (ours or the public code's) on a tool dataset",
+         params=("tool_train.device", "public_data.files"),
+         args=(arg("--checkpoint", required=True, help="best.pt, or a public best_model_*.pth"),
+               arg("--expect", metavar="NAME", help="first check the checkpoint's size and sha256 against params.yaml "
+                                                    "public_data.files.NAME"),
+               arg("--scene", choices=list(TOOL_SCENES), required=True), arg("--data-dir", required=True),
+               arg("--split", help="split file: evaluate its test set"),
+               arg("--all-frames", action="store_true", help="evaluate every frame of the data set"),
+               arg("--contaminated", action="store_true",
+                   help="label the result contaminated (the weights were trained on these frames)"),
+               arg("--out-dir", required=True)))
+def cmd_tool_evaluate(args, p) -> None:
     from tactilepipe.tool.report.study000 import evaluate_checkpoint
-    p = stage_params(args, "tool_train.device", "public_data.files")
     if args.expect:
         from tactilepipe.tool.formats.public_archive import verify_listed
         verify_listed(args.checkpoint, p["public_data"]["files"], args.expect, "--expect")
@@ -40,42 +54,15 @@ def cmd_tool_evaluate(args) -> None:
     print(json.dumps({k: result[k] for k in ("source", "frames", "n", "mae", "rmse", "r2", "contaminated")}))
 
 
-def cmd_study000_table(args) -> None:
+@command("study000-table", "study 000's protocols (or published weights) beside the paper",
+         params=("public_data.paper",),
+         args=(arg("--evals", nargs="*", default=[], help="eval.json of the runs full_public_frame, full_trial"),
+               arg("--published", help="eval.json of the published weights over every frame"),
+               arg("--out-dir", required=True)))
+def cmd_study000_table(args, p) -> None:
     from tactilepipe.tool.report.study000 import protocol_table, published_table
-    p = stage_params(args, "public_data.paper")
     paper, out = p["public_data"]["paper"], Path(args.out_dir)
     if args.published:
         published_table(Path(args.published), paper, out)
     else:
         protocol_table({Path(e).parent.name: Path(e) for e in args.evals}, paper, out)
-
-
-def add_parsers(sub, common, provenance) -> None:
-    """This study's sub-commands, on the parser's ``sub``; ``common`` and ``provenance`` are the
-    shared option groups."""
-    s = sub.add_parser("unpack-public", parents=[common],
-                       help="check a study-000 archive's size and sha256, unpack it into a public-layout session")
-    s.add_argument("archive", help="e.g. raw/downloads/data_normal.zip")
-    s.add_argument("--name", required=True, help="its entry in params.yaml public_data.files (data_normal, data_shear)")
-    s.add_argument("--raw-root", default="raw/tool", help="the session folder public_data.session is made here")
-    s.set_defaults(func=cmd_unpack_public)
-
-    s = sub.add_parser("tool-evaluate", parents=[common],
-                       help="evaluate a checkpoint (ours or the public code's) on a tool dataset")
-    s.add_argument("--checkpoint", required=True, help="best.pt, or a public best_model_*.pth")
-    s.add_argument("--expect", metavar="NAME", help="first check the checkpoint's size and sha256 against "
-                                                   "params.yaml public_data.files.NAME")
-    s.add_argument("--scene", choices=list(TOOL_SCENES), required=True)
-    s.add_argument("--data-dir", required=True)
-    s.add_argument("--split", help="split file: evaluate its test set")
-    s.add_argument("--all-frames", action="store_true", help="evaluate every frame of the data set")
-    s.add_argument("--contaminated", action="store_true",
-                   help="label the result contaminated (the weights were trained on these frames)")
-    s.add_argument("--out-dir", required=True)
-    s.set_defaults(func=cmd_tool_evaluate)
-
-    s = sub.add_parser("study000-table", parents=[common], help="study 000's protocols (or published weights) beside the paper")
-    s.add_argument("--evals", nargs="*", default=[], help="eval.json of the runs full_public_frame, full_trial")
-    s.add_argument("--published", help="eval.json of the published weights over every frame")
-    s.add_argument("--out-dir", required=True)
-    s.set_defaults(func=cmd_study000_table)

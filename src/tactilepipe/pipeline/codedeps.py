@@ -1,6 +1,7 @@
 """Which library files a pipeline stage runs, found from its imports (never listed by hand).
 
-A stage is one function of the command line (`cmd_*` in a study's module `tactilepipe.cli.<study>`).
+A stage is a command of the command line, declared once with `@command("name", ...)` on its function
+in a study's module `tactilepipe.cli.<study>` (cli/registry.py).
 Its code is:
 - the entry files (`__main__`, `cli/main.py`), without what they import for the other studies;
 - the stage's module and everything its module level imports;
@@ -11,8 +12,9 @@ Its code is:
   executes still counts), plus the `__init__.py` of each package on the way.
 
 Snakemake rules list these files as inputs, so editing one re-runs exactly the rules whose stage
-imports it; the dvc.yaml generator lists them as stage deps. The parameter keys a stage reads are
-found the same way, from the keys it hands to `cli.common.stage_params`, so both come from one place.
+imports it; the dvc.yaml generator lists them as stage deps. The parameter keys a stage reads, and
+those the rules read to shape its jobs, are read from the same declaration (its ``params=`` and
+``graph=``), from the source, so that Snakemake's start imports no stage module.
 """
 
 from __future__ import annotations
@@ -124,6 +126,40 @@ def _functions(module: str) -> dict[str, ast.FunctionDef]:
     return {n.name: n for n in _tree(module_path(module)).body if isinstance(n, ast.FunctionDef)}
 
 
+def _declaration(func: ast.FunctionDef) -> ast.Call | None:
+    """The ``@command("name", ...)`` call decorating ``func`` (cli/registry.py), if any."""
+    for d in func.decorator_list:
+        if isinstance(d, ast.Call) and isinstance(d.func, ast.Name) and d.func.id == "command" and d.args \
+                and isinstance(d.args[0], ast.Constant) and isinstance(d.args[0].value, str):
+            return d
+    return None
+
+
+@lru_cache(maxsize=None)
+def _declared_stages() -> dict[str, tuple[str, str]]:
+    """{command name: (module, function)} of every command the CLI modules declare."""
+    out = {}
+    for m in _study_modules():
+        for name, f in _functions(m).items():
+            call = _declaration(f)
+            if call is not None:
+                out[call.args[0].value] = (m, name)
+    return out
+
+
+def _declared_keys(stage: str, keyword: str) -> tuple[str, ...]:
+    module, name = _home(stage)
+    call = _declaration(_functions(module)[name])
+    for kw in call.keywords:
+        if kw.arg == keyword:
+            values = kw.value.elts if isinstance(kw.value, (ast.Tuple, ast.List)) else None
+            if values is None or not all(isinstance(v, ast.Constant) and isinstance(v.value, str) for v in values):
+                raise TactilepipeError(f"{module}.{name}: the {keyword}= of its declaration must be a tuple of "
+                                       f"string literals")
+            return tuple(v.value for v in values)
+    return ()
+
+
 def _called_helpers(func: ast.FunctionDef, functions: dict[str, ast.FunctionDef]) -> list[ast.FunctionDef]:
     """``func`` and the module-level functions of its module it calls, directly or through each other."""
     out, todo, seen = [], [func], set()
@@ -138,21 +174,20 @@ def _called_helpers(func: ast.FunctionDef, functions: dict[str, ast.FunctionDef]
     return out
 
 
-@lru_cache(maxsize=None)
-def _stage_module(stage: str) -> str:
-    """The CLI module that defines the stage function ``stage``."""
-    homes = {name: m for m in _study_modules() for name in _functions(m) if name.startswith("cmd_")}
+def _home(stage: str) -> tuple[str, str]:
+    """(module, function) of the declared stage ``stage``."""
+    homes = _declared_stages()
     if stage not in homes:
-        raise TactilepipeError(f"no pipeline stage '{stage}' in {CLI_PACKAGE} (stages: {sorted(homes)})")
+        raise TactilepipeError(f"no pipeline stage '{stage}' declared in {CLI_PACKAGE} (stages: {sorted(homes)})")
     return homes[stage]
 
 
 def stage_modules(stage: str) -> frozenset[str]:
-    """Modules the CLI stage function ``stage`` (e.g. "cmd_report_volume") runs.
+    """Modules the declared stage ``stage`` (a command name, e.g. "volume-report") runs.
 
     Every Snakemake start asks this for every stage, and every SLURM job starts Snakemake twice,
     so the answers are kept for the exact source they came from (sourcecache)."""
-    _stage_module(stage)                      # an unknown stage is an error, cached or not
+    _home(stage)                              # an unknown stage is an error, cached or not
     return frozenset(_stored_closures()[stage])
 
 
@@ -162,20 +197,20 @@ def _stored_closures() -> dict[str, list[str]]:
     stored = sourcecache.read(CLOSURE_CACHE)
     if stored:
         return stored
-    stages = sorted(name for m in _study_modules() for name in _functions(m) if name.startswith("cmd_"))
+    stages = sorted(_declared_stages())
     closures = {s: sorted(_stage_closure(s)) for s in stages}
     sourcecache.write(CLOSURE_CACHE, closures)
     return closures
 
 
 def _stage_closure(stage: str) -> frozenset[str]:
-    home = _stage_module(stage)
+    home, func = _home(stage)
     functions = _functions(home)
     tree = _tree(module_path(home))
     top = ast.Module(body=[n for n in tree.body if isinstance(n, (ast.Import, ast.ImportFrom))], type_ignores=[])
     # the stage's module runs its module level and the stage's functions, not its other stages
     roots = _imports_in(top, home, False)
-    for f in _called_helpers(functions[stage], functions):
+    for f in _called_helpers(functions[func], functions):
         roots |= _imports_in(f, home, False)
     # rules run `python -m tactilepipe`, which enters through __main__ and the parser of every
     # study (cli.main): those files count, but not what they import for other studies
@@ -192,17 +227,13 @@ def stage_files(stage: str, root: Path | None = None) -> list[str]:
 
 
 def stage_param_keys(stage: str) -> tuple[str, ...]:
-    """The dotted parameter keys the stage hands to `stage_params` (the only ones it can read)."""
-    keys: list[str] = []
-    functions = _functions(_stage_module(stage))
-    for f in _called_helpers(functions[stage], functions):
-        for n in ast.walk(f):
-            if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "stage_params":
-                for arg in n.args[1:]:
-                    if not (isinstance(arg, ast.Constant) and isinstance(arg.value, str)):
-                        raise TactilepipeError(f"{_stage_module(stage)}.{f.name}: stage_params keys must be string literals")
-                    keys.append(arg.value)
-    return tuple(dict.fromkeys(keys))
+    """The dotted parameter keys the stage declares (``params=``: the only ones it can read)."""
+    return _declared_keys(stage, "params")
+
+
+def stage_graph_keys(stage: str) -> tuple[str, ...]:
+    """The keys its declaration says the rules read to shape the stage's jobs (``graph=``)."""
+    return _declared_keys(stage, "graph")
 
 
 def stage_fingerprint(stage: str) -> str:

@@ -29,8 +29,8 @@ from tactilepipe.tool.scenes import TOOL_SCENES
 
 SCENES = ("volume", "drift", *TOOL_SCENES)
 # stages whose change leaves the draws (splits, folds) alone: the models and their report
-MODEL_STAGES = {"cmd_tool_train", "cmd_tool_report", "cmd_train", "cmd_gridsearch", "cmd_baseline",
-                "cmd_report_volume", "cmd_report_drift"}
+MODEL_STAGES = {"tool-train", "tool-model-report", "volume-train", "volume-gridsearch", "volume-baseline",
+                "volume-report", "drift-report"}
 LOWER_IS_BETTER = {"mae", "rmse"}
 HIGHER_IS_BETTER = {"r2", "loo_r2"}
 TOOL_SCORES = ("mae", "rmse", "r2")
@@ -191,7 +191,7 @@ def _same(a, b) -> bool:
 def _test_train_ratio(scene: str, run: dict) -> float:
     """n_test/n_train of one draw, for the corrected resampled t the reports use."""
     if scene == "volume":
-        folds = (run["provenance"] or {}).get("stages", {}).get("cmd_report_volume", {}).get("params", {}).get("folds")
+        folds = (run["provenance"] or {}).get("stages", {}).get("volume-report", {}).get("params", {}).get("folds")
         return folds["test_lifts_per_volume"] / folds["train_lifts_per_volume"] if folds else 0.0
     return float(run["metrics"].get("test_train_ratio", 0.0) or 0.0)
 

@@ -47,19 +47,11 @@ import torch
 from torch import nn
 
 from tactilepipe.core.errors import ArgumentError
-from tactilepipe.tool.model.variants import VARIANTS
+from tactilepipe.tool.model.variants import DEPTHS, VARIANTS
 
 MIN_IMAGE_SIZE = 8
 GAM_CHANNEL_GATES = ("sigmoid", "none")
 PAPER_WIDTH = 64                     # the published model's width (its weights need it)
-
-
-DEPTHS: dict[int, tuple[str, list[int]]] = {
-    18: ("basic", [2, 2, 2, 2]),
-    34: ("basic", [3, 4, 6, 3]),
-    50: ("bottleneck", [3, 4, 6, 3]),
-    101: ("bottleneck", [3, 4, 23, 3]),
-}
 
 
 def _unused_taps(kernel: int, padding: int, stride: int, size: int) -> int:

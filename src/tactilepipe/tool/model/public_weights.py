@@ -27,7 +27,8 @@ import torch
 from torch import nn
 
 from tactilepipe.core.errors import ArgumentError, InputError
-from tactilepipe.tool.model.network import DEPTHS, PAPER_WIDTH, build_model
+from tactilepipe.tool.model.network import PAPER_WIDTH, build_model
+from tactilepipe.tool.model.variants import DEPTHS
 
 PUBLIC_MARKER = "initial_cnn1.conv1.weight"
 HEADS = {"normal": (0, 2, 4), "shear": (0, 3, 5)}      # public fc indices of our head.0, head.2, head.4

@@ -1,4 +1,5 @@
-"""The model variants of study 000's ablation: the one place a variant is defined.
+"""The model variants of study 000's ablation (the one place a variant is defined), and the depths
+of its ResNet regressor.
 
 Each entry says which input channels each encoder reads (slices of the loader's four channels
 [left, left_ref, right, right_ref]), whether the GAM blocks exist, the baseline that has the same
@@ -37,6 +38,14 @@ VARIANTS: dict[str, Variant] = {
                       "the ResNet's first conv takes 256 channels"),
     "no_gam": Variant(((0, 2), (2, 4)), False, "tactile_rmse_linear", "no attention (GAM)", "#8172B2",
                       "both fingers with references, every GAM replaced by identity"),
+}
+
+# the ResNet regressor's depths: block kind and blocks per stage
+DEPTHS: dict[int, tuple[str, list[int]]] = {
+    18: ("basic", [2, 2, 2, 2]),
+    34: ("basic", [3, 4, 6, 3]),
+    50: ("bottleneck", [3, 4, 6, 3]),
+    101: ("bottleneck", [3, 4, 23, 3]),
 }
 
 ALL = "all"

@@ -31,7 +31,7 @@ from tactilepipe.core.errors import InputError, TactilepipeError
 from tactilepipe.core.hashing import file_sha256
 from tactilepipe.tool.scenes import TOOL_SCENES
 
-TRAIN_STAGE = "cmd_tool_train"
+TRAIN_STAGE = "tool-train"
 
 
 def weights_digest(checkpoint: Path) -> str:

@@ -1,0 +1,75 @@
+"""One declaration per command: its name, help, arguments, and for a pipeline stage the parameters
+it reads and the ones the workflow reads to shape its jobs.
+
+A study's module declares each command on its function::
+
+    @command("volume-split", "seeded train/test lift draws stratified by volume",
+           params=("seed", "folds"),
+           args=(arg("--dataset", required=True), arg("--out", required=True)))
+    def cmd_volume_split(args, p): ...
+
+From that one declaration:
+- the command line builds the sub-command (``add_commands``) and hands the function its
+  parameters, cut down to ``params`` (``p``; reading any other key is an error);
+- the workflow (``pipeline/codedeps.py``, which reads the declarations from the source without
+  importing them) stamps the values of ``params`` and ``graph`` (results/params/<name>.json), lists
+  them as the DVC stage's params, and takes the function's imports as the stage's code.
+``params`` and ``graph`` must be tuples of string literals, so that they can be read that way.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+from tactilepipe.core.errors import TactilepipeError
+
+
+@dataclass(frozen=True)
+class Arg:
+    flags: tuple[str, ...]
+    options: dict = field(default_factory=dict)
+
+
+def arg(*flags: str, **options) -> Arg:
+    """An argument as ``argparse.ArgumentParser.add_argument`` takes it."""
+    return Arg(flags, options)
+
+
+@dataclass(frozen=True)
+class Command:
+    name: str
+    func: Callable
+    help: str
+    params: tuple[str, ...]        # dotted keys of params.yaml the command reads (its only way in)
+    graph: tuple[str, ...]         # keys the rules read to decide its jobs or their arguments
+    args: tuple[Arg, ...]
+    provenance: bool               # takes --provenance-stages / --sessions (a scene's report)
+    parser_options: dict           # more of add_parser's keywords (description, formatter_class)
+
+
+COMMANDS: dict[str, Command] = {}
+
+
+def command(name: str, help: str, *, params: tuple[str, ...] = (), graph: tuple[str, ...] = (),
+            args: tuple[Arg, ...] = (), provenance: bool = False, **parser_options):
+    """Declare the decorated function ``f(args, p)`` as the command ``name``."""
+    def register(func: Callable) -> Callable:
+        if name in COMMANDS:
+            raise TactilepipeError(f"command '{name}' is declared twice ({COMMANDS[name].func.__module__} and "
+                                   f"{func.__module__})")
+        COMMANDS[name] = Command(name, func, help, tuple(params), tuple(graph), tuple(args), provenance,
+                                 parser_options)
+        return func
+    return register
+
+
+def add_commands(sub, settings, provenance) -> None:
+    """A sub-parser per declared command: ``settings`` (--params, --scale, --override) for those
+    that read parameters, ``provenance`` for the scene reports."""
+    for c in COMMANDS.values():
+        parents = ([settings] if c.params else []) + ([provenance] if c.provenance else [])
+        s = sub.add_parser(c.name, parents=parents, help=c.help, **c.parser_options)
+        for a in c.args:
+            s.add_argument(*a.flags, **a.options)
+        s.set_defaults(command_spec=c)
