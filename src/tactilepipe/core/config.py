@@ -205,7 +205,7 @@ class DeclaredParams(dict):
 
     def __missing__(self, key):
         raise ConfigError(f"{self.where}: reads parameter '{key}', which the stage does not declare "
-                          f"(add it to the stage's stage_params(...) call in its tactilepipe.cli module)")
+                          f"(add it to the params= of the stage's @command declaration in tactilepipe.cli)")
 
     def get(self, key, default=None):
         """As ``self[key]``: an undeclared key is an error, never a silent second default."""
