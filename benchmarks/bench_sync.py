@@ -48,7 +48,7 @@ def glitched(raw, kind: str, finger: str, k: int):
 def shift(raw, out: Path, p: dict) -> float | None:
     """The offset found, or None when the trial is refused or left out (on_low_score: drop)."""
     try:
-        clock = ingest_trial(raw, out, p["tool_ingest"]["image_size"], p["tool_ingest"])["clock"]
+        clock = ingest_trial(raw, out, p["tool_ingest"]["stored_size"], p["tool_ingest"])["clock"]
     except InputError:
         return None
     return None if clock.get("dropped") else clock["refined_shift_s"]

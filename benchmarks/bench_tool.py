@@ -149,7 +149,7 @@ def _untrained_checkpoint(p: dict, path: Path) -> Path:
     from tactilepipe.tool.model.network import build_model
     from tactilepipe.tool.model.checkpoint import CHECKPOINT_FORMAT
     from tactilepipe.tool.model.train_config import TrainConfig
-    tt, size = p["tool_train"], p["tool_ingest"]["image_size"]
+    tt, size = p["tool_train"], p["tool_ingest"]["stored_size"]
     cfg = TrainConfig.from_params(tt, variant="full", depth=tt["depth"], image_size=size, normalise="minmax",
                                   seed=p["seed"])
     model = build_model("full", tt["depth"], size, tt["gam_channel_gate"], tt["width"])

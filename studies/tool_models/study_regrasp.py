@@ -3,7 +3,7 @@
 Without its zero-force reference frame, a model must read the force from the absolute imprint.
 This study renders the default session's pressing trials with the simulator (the same frames the
 workflow writes, byte for byte) and measures, on the frames as the models see them (grayscale,
-resized to ``tool_ingest.image_size`` by the ingest's own ``preprocess``), the RMS difference in DN:
+resized to ``tool_ingest.stored_size`` by the ingest's own ``preprocess``), the RMS difference in DN:
 
 - re-grasp: the reference frames (frame 0, tip at rest) of two trials of the same tool and pose;
 - press at F N: a frame whose tip force is within 0.5 N of F against its own trial's reference;
@@ -47,7 +47,7 @@ def main() -> None:
     ap.add_argument("--max-trials", type=int, help="only the first N pressing trials (a quick look)")
     args = ap.parse_args()
     params = load_params()
-    size = int(params["tool_ingest"]["image_size"])
+    size = int(params["tool_ingest"]["stored_size"])
     plan = [s for s in ts.session_plan(params) if s.kind == "normal"][:args.max_trials]
     refs = defaultdict(list)                  # (tool, orientation, insertion, finger) -> reference frames
     press = defaultdict(list)

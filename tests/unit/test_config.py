@@ -230,7 +230,7 @@ def test_a_stage_receives_only_the_keys_it_declares():
     assert p == {"scale": "smoke", "mlp": {"grid": {"alpha": [1e-4]}}}
     assert p["mlp"]["grid"]["alpha"] == [1e-4]
     with pytest.raises(ConfigError, match=r"cmd_x: reads parameter 'seed', which the stage does not declare "
-                                          r"\(add it to the stage's stage_params\(\.\.\.\) call in its tactilepipe.cli module\)"):
+                                          r"\(add it to the params= of the stage's @command declaration in tactilepipe.cli\)"):
         p["seed"]
     with pytest.raises(ConfigError, match="cmd_x: reads parameter 'max_iter'"):
         p["mlp"]["max_iter"]                       # a sibling of a declared key is not declared
@@ -271,3 +271,10 @@ def test_an_override_keeps_only_the_keys_that_changed(raw_params):
     merged = {**raw_params, "folds": {**raw_params["folds"], "n_folds": 3}, "scale": "smoke"}   # as Snakemake merges
     assert changed_leaves(merged, raw_params) == {"folds": {"n_folds": 3}, "scale": "smoke"}
     assert changed_leaves(raw_params, raw_params) == {}
+
+
+def test_a_model_input_larger_than_the_stored_frames_is_refused(params_path):
+    with pytest.raises(ConfigError, match=r"tool_train.image_size=96 is larger than tool_ingest.stored_size=64"):
+        load_params(params_path, {"scale": "default", "tool_train": {"image_size": 96}})
+    with pytest.raises(ConfigError, match=r"tool_train.sweep\[0\].image_size=128 is larger"):
+        load_params(params_path, {"scale": "default", "tool_train": {"sweep": [{"depth": 18, "image_size": 128}]}})

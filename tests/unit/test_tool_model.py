@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 import torch
 
-from tactilepipe.core.errors import ArgumentError, TactilepipeError
+from tactilepipe.core.errors import ArgumentError, ConfigError, TactilepipeError
 from tactilepipe.tool.data.loader import ToolFrames
 from tactilepipe.tool.model.network import (MIN_IMAGE_SIZE, PAPER_WIDTH, TrimmedConv2d, build_model,
                                             count_parameters)
@@ -186,6 +186,13 @@ def tiny(tmp_path_factory):
     root = make_dataset(tmp_path_factory.mktemp("tool_model") / "dataset")
     data = ToolFrames(root, "normal")
     return data, make_split_dict(data)
+
+
+def test_frames_are_downscaled_for_the_model_never_upsampled(tiny):
+    data, _ = tiny
+    assert data.resized(S // 2).frames.shape[-1] == S // 2 and data.resized(S) is data
+    with pytest.raises(ConfigError, match=f"a {2 * S}-px model input from a data set of {S}-px frames"):
+        data.resized(2 * S)
 
 
 def weights(path: Path) -> dict:

@@ -38,7 +38,7 @@ def cmd_tool_ingest(args, p) -> None:
     from tactilepipe.tool.data.ingest import ingest_trial
     ti = p["tool_ingest"]
     raw = open_trial(args.trial, args.format, ti["ros_topics"])
-    info = ingest_trial(raw, args.out, ti["image_size"], ti)
+    info = ingest_trial(raw, args.out, ti["stored_size"], ti)
     print(json.dumps({k: info[k] for k in ("trial", "frames", "force_samples", "clock", "drops")}))
 
 
@@ -130,7 +130,7 @@ def cmd_tool_model_report(args, p) -> None:
 
 
 @command("predict", "stream a recorded trial through a trained model",
-         params=("tool_ingest.ros_topics", "tool_ingest.image_size", "predict"),
+         params=("tool_ingest.ros_topics", "tool_ingest.stored_size", "predict"),
          args=(arg("--checkpoint", required=True, help="e.g. results/tool_normal/models/full/best.pt"),
                arg("--trial", required=True, help="trial folder or bag"),
                arg("--format", choices=["native", "public", "ros"], default="native"),

@@ -167,6 +167,12 @@ def _check_consistency(p: dict, source: str) -> None:
         if sorted(v[1] for v in axes.values()) != ["x", "y", "z"]:
             raise ConfigError(f"{source}: papillarray_axes.{sensor} must take each recorded axis x, y, z once "
                               f"(got {axes})")
+    stored = p["tool_ingest"]["stored_size"]
+    for where, size in [("tool_train.image_size", p["tool_train"]["image_size"])] + \
+            [(f"tool_train.sweep[{i}].image_size", s["image_size"]) for i, s in enumerate(p["tool_train"]["sweep"])]:
+        if size > stored:
+            raise ConfigError(f"{source}: {where}={size} is larger than tool_ingest.stored_size={stored}: the model "
+                              f"would train on upsampled frames (store them larger, or train smaller)")
     if abs(sum(p["tool_split"]["fractions"]) - 1.0) > 1e-6:
         raise ConfigError(f"{source}: tool_split.fractions must sum to 1 (got {p['tool_split']['fractions']})")
     if p["simulate_volume"]["friction_kinetic"] > p["simulate_volume"]["friction_static"]:

@@ -29,9 +29,10 @@ class RosTopics(Group):
 
 
 class ToolIngest(Group):
-    """Where a frame becomes a model input."""
+    """Where a recorded frame becomes a stored one."""
 
-    image_size: int = Field(ge=8, le=1024)
+    stored_size: int = Field(ge=8, le=1024, description="side S of the square grayscale frames the shards and data "
+                                                        "sets hold (the model's input is downscaled from them)")
     max_offset_s: PositiveFloat
     ros_topics: RosTopics
     clock: ClockSync

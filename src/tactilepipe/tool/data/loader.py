@@ -14,6 +14,8 @@ from typing import Iterator
 import numpy as np
 import pandas as pd
 
+from tactilepipe.core.errors import ConfigError
+
 
 class ToolFrames:
     def __init__(self, dataset_dir: str | Path, label: str):
@@ -31,11 +33,15 @@ class ToolFrames:
 
     def resized(self, size: int) -> "ToolFrames":
         """The same samples with every image area-downscaled to size x size (held in memory), for
-        models trained on smaller inputs than the dataset was built with."""
+        models trained on smaller inputs than the dataset was built with; never upsampled."""
         import copy
         import cv2
-        if size == self.frames.shape[-1]:
+        stored = self.frames.shape[-1]
+        if size == stored:
             return self
+        if size > stored:
+            raise ConfigError(f"a {size}-px model input from a data set of {stored}-px frames would be upsampled: "
+                              f"tool_train.image_size must not exceed tool_ingest.stored_size")
         shrink = lambda a: np.stack([cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
                                      for img in a.reshape(-1, *a.shape[-2:])]).reshape(*a.shape[:-2], size, size)
         view = copy.copy(self)

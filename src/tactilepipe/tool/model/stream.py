@@ -95,10 +95,10 @@ def estimator(checkpoint: Path, p: dict, label_range=None) -> Iterator[PairEstim
     torch.set_num_threads(p["predict"]["num_threads"])
     try:
         require_active(p["predict"]["kernels"])
-        model, meta = load_model(checkpoint, image_size=p["tool_ingest"]["image_size"])
+        model, meta = load_model(checkpoint, image_size=p["tool_ingest"]["stored_size"])
         if meta["label_stats"] is None:                # a public-code checkpoint
             meta = {**meta, "label_stats": _public_label_stats(checkpoint, meta, label_range)}
-        yield PairEstimator(model, meta, p["tool_ingest"]["image_size"])
+        yield PairEstimator(model, meta, p["tool_ingest"]["stored_size"])
     finally:
         torch.set_num_threads(saved_threads)       # an in-process caller keeps its own setting
 

@@ -70,7 +70,7 @@ def evaluate_checkpoint(checkpoint: Path, data_dir: Path, scene: str, out_dir: P
         result["note"] = CONTAMINATED
     if meta["source"] == "public" and meta["image_size"] != PUBLIC_IMAGE_SIZE:
         result["warning"] = (f"the public weights were trained on {PUBLIC_IMAGE_SIZE} px inputs, run here at "
-                             f"{meta['image_size']} px (tool_ingest.image_size): use the paper scale")
+                             f"{meta['image_size']} px (tool_ingest.stored_size): use the paper scale")
     write_json(out_dir / "eval.json", result)
     return result
 
