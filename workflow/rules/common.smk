@@ -28,7 +28,8 @@ from tactilepipe.tool.model.variants import chosen_variants
 with open("params.yaml") as _fh:
     _FILE_PARAMS = yaml.safe_load(_fh)
 config.update(typed_like(config, _FILE_PARAMS))
-# Overrides given with --config are handed to every CLI call, so each stage sees the same values.
+# Overrides given with --config are applied after the scale's overlay; a stage receives the result
+# through its parameter stamp (param_stamp), so each sees the same values.
 OVERRIDES = changed_leaves(config, _FILE_PARAMS)
 try:
     P = resolve(dict(config), "params.yaml (+ --config)", OVERRIDES)
@@ -36,7 +37,6 @@ try:
 except TactilepipeError as exc:
     raise WorkflowError(str(exc)) from None
 CLI = f"{shlex.quote(sys.executable)} -m tactilepipe"
-PARAMS_ARGS = f"--override {shlex.quote(json.dumps(OVERRIDES, sort_keys=True))}" if OVERRIDES else ""
 
 
 @cache

@@ -20,5 +20,5 @@ rule drift_report:
     log:
         f"{LOGS}/drift/report.log",
     shell:
-        "{CLI} drift-report {PARAMS_ARGS} --in-dir {DRIFT:q} --session-meta {input.meta:q} "
+        "{CLI} drift-report --stamp {input.params:q} --in-dir {DRIFT:q} --session-meta {input.meta:q} "
         "--shards {input.shards:q} {params.provenance} 2> {log:q}"

@@ -25,4 +25,4 @@ rule volume_regimes:
     log:
         f"{LOGS}/volume_regimes.log",
     shell:
-        "{CLI} volume-regimes {PARAMS_ARGS} --out-dir {params.out_dir:q} --jobs {threads} 2> {log:q}"
+        "{CLI} volume-regimes --stamp {input.params:q} --out-dir {params.out_dir:q} --jobs {threads} 2> {log:q}"

@@ -18,7 +18,7 @@ rule simulate_volume:
     log:
         f"{LOGS}/simulate_volume/{{session}}.log",
     shell:
-        "{CLI} volume-simulate {PARAMS_ARGS} --out-dir {params.out_dir:q} --labels --jobs {threads} 2> {log:q}"
+        "{CLI} volume-simulate --stamp {input.params:q} --out-dir {params.out_dir:q} --labels --jobs {threads} 2> {log:q}"
 
 
 rule simulate_drift:
@@ -38,4 +38,4 @@ rule simulate_drift:
     log:
         f"{LOGS}/simulate_drift/{{session}}.log",
     shell:
-        "{CLI} drift-simulate {PARAMS_ARGS} --out-dir {params.out_dir:q} --jobs {threads} 2> {log:q}"
+        "{CLI} drift-simulate --stamp {input.params:q} --out-dir {params.out_dir:q} --jobs {threads} 2> {log:q}"

@@ -25,7 +25,7 @@ rule study000_protocols:
     log:
         f"{LOGS}/study000/protocols.log",
     shell:
-        "{CLI} study000-table {PARAMS_ARGS} --evals {input.evals:q} --out-dir {params.out_dir:q} 2> {log:q}"
+        "{CLI} study000-table --stamp {input.params:q} --evals {input.evals:q} --out-dir {params.out_dir:q} 2> {log:q}"
 
 
 rule study000_evaluate_published:
@@ -45,7 +45,7 @@ rule study000_evaluate_published:
     log:
         f"{LOGS}/study000/published_normal.log",
     shell:
-        "{CLI} tool-evaluate {PARAMS_ARGS} --checkpoint {input.checkpoint:q} --expect best_model_normal --scene tool_normal "
+        "{CLI} tool-evaluate --stamp {input.params:q} --checkpoint {input.checkpoint:q} --expect best_model_normal --scene tool_normal "
         "--data-dir results/tool_normal/data --all-frames --contaminated --out-dir {params.out_dir:q} > {log:q} 2>&1"
 
 
@@ -64,4 +64,4 @@ rule study000_published:
     log:
         f"{LOGS}/study000/published.log",
     shell:
-        "{CLI} study000-table {PARAMS_ARGS} --published {input.evaluation:q} --out-dir {params.out_dir:q} 2> {log:q}"
+        "{CLI} study000-table --stamp {input.params:q} --published {input.evaluation:q} --out-dir {params.out_dir:q} 2> {log:q}"

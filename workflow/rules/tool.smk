@@ -23,7 +23,7 @@ rule simulate_tool:
     log:
         f"{LOGS}/simulate_tool/{{session}}.log",
     shell:
-        "{CLI} tool-simulate {PARAMS_ARGS} --out-dir {params.out_dir:q} --jobs {threads} 2> {log:q}"
+        "{CLI} tool-simulate --stamp {input.params:q} --out-dir {params.out_dir:q} --jobs {threads} 2> {log:q}"
 
 
 rule ingest_tool:
@@ -41,7 +41,7 @@ rule ingest_tool:
     log:
         f"{LOGS}/ingest_tool/{{session}}/{{trial}}.log",
     shell:
-        "{CLI} tool-ingest {PARAMS_ARGS} {params.path:q} --format {params.fmt} --out {output:q} > {log:q} 2>&1"
+        "{CLI} tool-ingest --stamp {input.params:q} {params.path:q} --format {params.fmt} --out {output:q} > {log:q} 2>&1"
 
 
 rule tool_clock_figure:
@@ -78,7 +78,7 @@ rule tool_dataset:
     log:
         f"{LOGS}/{{scene}}/dataset.log",
     shell:
-        "{CLI} tool-dataset {PARAMS_ARGS} --kind {params.kind} --shards {input.shards:q} "
+        "{CLI} tool-dataset --stamp {input.params:q} --kind {params.kind} --shards {input.shards:q} "
         "--out-dir results/{wildcards.scene}/data 2> {log:q}"
 
 
@@ -105,7 +105,7 @@ rule tool_split:
     log:
         f"{LOGS}/{{scene}}/split_{{split}}.log",
     shell:
-        "{CLI} tool-split {PARAMS_ARGS} --data-dir results/{wildcards.scene}/data --split {wildcards.split} "
+        "{CLI} tool-split --stamp {input.params:q} --data-dir results/{wildcards.scene}/data --split {wildcards.split} "
         "--label {params.label} --out {output:q} 2> {log:q}"
 
 
@@ -125,7 +125,7 @@ rule tool_data_report:
     log:
         f"{LOGS}/{{scene}}/data_report.log",
     shell:
-        "{CLI} tool-data-report {PARAMS_ARGS} --scene {wildcards.scene} --in-dir results/{wildcards.scene} 2> {log:q}"
+        "{CLI} tool-data-report --stamp {input.params:q} --scene {wildcards.scene} --in-dir results/{wildcards.scene} 2> {log:q}"
 
 
 rule tool_data:
@@ -171,7 +171,7 @@ rule tool_train:
     log:
         "results/logs/{scene}/train_{run}.log",
     shell:
-        "{CLI} tool-train {PARAMS_ARGS} --scene {wildcards.scene} --variant {params.spec[0]} "
+        "{CLI} tool-train --stamp {input.params:q} --scene {wildcards.scene} --variant {params.spec[0]} "
         "--data-dir results/{wildcards.scene}/data --split {input.split} --depth {params.spec[2]} "
         "--image-size {params.spec[3]} --out-dir results/{wildcards.scene}/models/{wildcards.run} --quiet 2> {log:q}"
 
@@ -202,5 +202,5 @@ rule tool_model_report:
     log:
         "results/logs/{scene}/model_report.log",
     shell:
-        "{CLI} tool-model-report {PARAMS_ARGS} --scene {wildcards.scene} --in-dir results/{wildcards.scene} "
+        "{CLI} tool-model-report --stamp {input.params:q} --scene {wildcards.scene} --in-dir results/{wildcards.scene} "
         "--runs {params.runs} {params.provenance} 2> {log:q}"

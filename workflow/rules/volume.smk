@@ -15,7 +15,7 @@ rule volume_dataset:
     log:
         f"{LOGS}/volume/dataset.log",
     shell:
-        "{CLI} volume-dataset {PARAMS_ARGS} --out {output.data:q} --qc {output.qc:q} 2> {log:q}"
+        "{CLI} volume-dataset --stamp {input.params:q} --out {output.data:q} --qc {output.qc:q} 2> {log:q}"
 
 
 # a second's work on the dataset table: on a cluster it runs where Snakemake runs (as tool_split)
@@ -35,7 +35,7 @@ rule volume_split:
     log:
         f"{LOGS}/volume/split.log",
     shell:
-        "{CLI} volume-split {PARAMS_ARGS} --dataset {input.data:q} --out {output:q} 2> {log:q}"
+        "{CLI} volume-split --stamp {input.params:q} --dataset {input.data:q} --out {output:q} 2> {log:q}"
 
 
 rule volume_train:
@@ -54,7 +54,7 @@ rule volume_train:
     log:
         f"{LOGS}/volume/train_{{modality}}.log",
     shell:
-        "{CLI} volume-train {PARAMS_ARGS} --modality {wildcards.modality:q} --dataset {input.data:q} "
+        "{CLI} volume-train --stamp {input.params:q} --modality {wildcards.modality:q} --dataset {input.data:q} "
         "--folds {input.folds:q} --out-dir {params.out_dir:q} 2> {log:q}"
 
 
@@ -71,7 +71,7 @@ rule volume_gridsearch:
     log:
         f"{LOGS}/volume/gridsearch.log",
     shell:
-        "{CLI} volume-gridsearch {PARAMS_ARGS} --dataset {input.data:q} --folds {input.folds:q} --out {output:q} 2> {log:q}"
+        "{CLI} volume-gridsearch --stamp {input.params:q} --dataset {input.data:q} --folds {input.folds:q} --out {output:q} 2> {log:q}"
 
 
 rule volume_baseline:
@@ -90,7 +90,7 @@ rule volume_baseline:
     log:
         f"{LOGS}/volume/baseline.log",
     shell:
-        "{CLI} volume-baseline {PARAMS_ARGS} --dataset {input.data:q} --folds {input.folds:q} "
+        "{CLI} volume-baseline --stamp {input.params:q} --dataset {input.data:q} --folds {input.folds:q} "
         "--out-dir {VOLUME:q}/baseline 2> {log:q}"
 
 
@@ -115,4 +115,4 @@ rule volume_report:
     log:
         f"{LOGS}/volume/report.log",
     shell:
-        "{CLI} volume-report {PARAMS_ARGS} --in-dir {VOLUME:q} {params.provenance} 2> {log:q}"
+        "{CLI} volume-report --stamp {input.params:q} --in-dir {VOLUME:q} {params.provenance} 2> {log:q}"

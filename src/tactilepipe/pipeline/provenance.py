@@ -12,7 +12,6 @@ import hashlib
 from pathlib import Path
 
 from tactilepipe.core.atomic import write_json
-from tactilepipe.core.config import declared
 from tactilepipe.core.environment import environment, git_state
 from tactilepipe.core.hashing import file_sha256
 from tactilepipe.pipeline import codedeps
@@ -30,19 +29,18 @@ def session_hash(path: str | Path) -> str:
     return h.hexdigest()
 
 
-def scene_provenance(stages: list[str], params: dict, sessions: list[str | Path]) -> dict:
-    """Provenance of a scene made by the CLI ``stages`` from ``sessions`` under ``params`` (the
-    resolved parameters: each stage's entry records the values it declares)."""
+def scene_provenance(given: dict[str, dict], sessions: list[str | Path]) -> dict:
+    """Provenance of a scene made by the stages in ``given`` ({stage: the parameter values it was
+    given}) from ``sessions``."""
     return {
-        "stages": {s: {"code_sha256": codedeps.stage_fingerprint(s),
-                       "params": declared(params, codedeps.stage_param_keys(s), s)} for s in stages},
+        "stages": {s: {"code_sha256": codedeps.stage_fingerprint(s), "params": params} for s, params in given.items()},
         "sessions": {str(s): session_hash(s) for s in sessions},
         "environment": environment(),
         "git": git_state(),
     }
 
 
-def write_provenance(path: str | Path, stages: list[str], params: dict, sessions: list[str | Path]) -> dict:
-    prov = scene_provenance(stages, params, sessions)
+def write_provenance(path: str | Path, given: dict[str, dict], sessions: list[str | Path]) -> dict:
+    prov = scene_provenance(given, sessions)
     write_json(path, prov)
     return prov
