@@ -278,3 +278,24 @@ def test_a_model_input_larger_than_the_stored_frames_is_refused(params_path):
         load_params(params_path, {"scale": "default", "tool_train": {"image_size": 96}})
     with pytest.raises(ConfigError, match=r"tool_train.sweep\[0\].image_size=128 is larger"):
         load_params(params_path, {"scale": "default", "tool_train": {"sweep": [{"depth": 18, "image_size": 128}]}})
+
+
+def test_a_stage_under_the_workflow_takes_its_values_from_its_stamp(tmp_path, capsys, monkeypatch):
+    """The values a job receives are its stamp's, not params.yaml's; a stamp of another stage, or
+    --stamp with --override, is refused in one line."""
+    import pandas as pd
+    from tactilepipe.cli.common import stage_params
+    data = tmp_path / "data.parquet"
+    pd.DataFrame({"lift": ["a"], "volume_ml": [0.0], "set": ["main"]}).to_parquet(data)
+    values = {"seed": 11, "folds": {"n_folds": 2, "train_lifts_per_volume": 3, "test_lifts_per_volume": 2}}
+    stamp = tmp_path / "volume-split.json"
+    stamp.write_text(json.dumps({"stage": "volume-split", "declared": ["seed", "folds"], "graph": [], "values": values}))
+    args = cli.build_parser().parse_args(["volume-split", "--stamp", str(stamp), "--dataset", str(data), "--out", "x"])
+    assert stage_params(args, "seed", "folds") == values
+    other = tmp_path / "volume-train.json"
+    other.write_text(json.dumps({"stage": "volume-train", "declared": [], "graph": [], "values": values}))
+    assert cli.main(["volume-split", "--stamp", str(other), "--dataset", str(data), "--out", "x"]) == 2
+    assert "not the parameter stamp of volume-split (it names 'volume-train')" in capsys.readouterr().err
+    assert cli.main(["volume-split", "--stamp", str(stamp), "--override", "{}", "--scale", "smoke",
+                     "--dataset", str(data), "--out", "x"]) == 2
+    assert "give it without --override or --scale" in capsys.readouterr().err
