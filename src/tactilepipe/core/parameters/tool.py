@@ -7,7 +7,7 @@ from pydantic import Field, NonNegativeFloat, NonNegativeInt, PositiveFloat
 
 from tactilepipe.core.parameters.base import Group, RequiredKeys, Triple, UniqueList
 
-Depth = Literal[18, 34, 50, 101]          # ResNet depths
+Depth = Literal[18, 34, 50, 101]          # ResNet depths: tool/model/variants.py DEPTHS (a test keeps them equal)
 Kernels = Literal["portable", "native"]
 
 
