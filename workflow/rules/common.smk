@@ -8,9 +8,9 @@ from pathlib import Path
 
 import yaml
 
-from tactilepipe.pipeline import codedeps
+from tactilepipe.pipeline import codedeps, stamps
 from tactilepipe.core.atomic import write_text
-from tactilepipe.core.config import changed_leaves, declared, deep_merge, resolve, typed_like
+from tactilepipe.core.config import changed_leaves, resolve, typed_like
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.volume.labels import read_session_labels
 from tactilepipe.volume.simulate import session_plan
@@ -63,10 +63,6 @@ def tool_background_frame():
 PARAM_STAMPS = "results/params"
 
 
-def _plain(params):
-    return json.loads(json.dumps(params))
-
-
 def param_stamp(stage):
     """An input function giving results/params/<stage>.json: the values of the parameters the stage
     declares (its only way in) and of its declared graph keys, the ones the rules read to decide
@@ -83,24 +79,16 @@ def param_stamp(stage):
     return lambda wildcards: stamp_file(stage)
 
 
-def _stamp_text(stage):
-    keys = codedeps.stage_param_keys(stage)
-    graph_keys = codedeps.stage_graph_keys(stage)
-    stamp = {"stage": stage, "declared": list(keys), "graph": list(graph_keys),
-             "values": deep_merge(_plain(declared(P, keys, stage)), _plain(declared(P, graph_keys, "workflow")))}
-    return json.dumps(stamp, indent=1, sort_keys=True) + "\n"
-
-
 @cache
 def stamp_file(stage):
     """The stamp of ``stage`` as this run sees it (see param_stamp): the tracked file, written when
     its values changed, or in a dry run a scratch copy holding the new values."""
     path = Path(PARAM_STAMPS) / f"{stage}.json"
-    text = _stamp_text(stage)
+    text = stamps.stamp_text(stage, codedeps.stage_param_keys(stage), codedeps.stage_graph_keys(stage), P)
     old = path.read_text() if path.is_file() else None
     if old == text:
         return str(path)
-    print(f"{path}: {_stamp_change(old, text)}", file=sys.stderr, flush=True)
+    print(f"{path}: {stamps.stamp_change(old, text)}", file=sys.stderr, flush=True)
     if workflow.dryrun:
         path = Path(_dry_run_scratch()) / "changed-params" / f"{stage}.json"
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -114,27 +102,6 @@ def _tell_snakemake_it_exists(path):
     # folder was listed would otherwise be a missing input (pinned Snakemake's IOCache)
     if workflow.iocache.active:
         workflow.iocache.exists_local[str(path)] = True
-
-
-def _stamp_change(old, new):
-    """What changed between two stamps' values, key by key (why the rules that read them re-run)."""
-    if old is None:
-        return "new parameter stamp"
-    try:
-        before = json.loads(old)["values"]
-    except (ValueError, KeyError):
-        return "unreadable stamp, rewritten"
-    after = json.loads(new)["values"]
-
-    def leaves(node, prefix=""):
-        if isinstance(node, dict):
-            return {k: v for key, sub in node.items() for k, v in leaves(sub, f"{prefix}{key}.").items()}
-        return {prefix[:-1]: node}
-
-    a, b = leaves(before), leaves(after)
-    changes = [f"{k} {json.dumps(a.get(k))} -> {json.dumps(b.get(k))}" for k in sorted(a.keys() | b.keys())
-               if a.get(k, ...) != b.get(k, ...)]
-    return "parameters changed: " + "; ".join(changes) if changes else "declared keys changed"
 
 
 @cache

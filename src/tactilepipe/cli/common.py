@@ -28,28 +28,13 @@ def stage_params(args, *keys: str) -> dict:
     a job receives exactly what its stamp says; by hand, from params.yaml (+ --override), resolved
     for the scale."""
     from tactilepipe.core.config import declared, load_params
+    from tactilepipe.pipeline.stamps import stamp_values
     where = f"tactilepipe {args.command}"
     if args.stamp:
         if args.override or args.scale:
             raise ConfigError("--stamp holds the stage's resolved values: give it without --override or --scale")
         return declared(stamp_values(args.stamp, args.command), keys, where)
     return declared(load_params(args.params, param_overrides(args)), keys, where)
-
-
-def stamp_values(path: str, stage: str) -> dict:
-    """The values of ``stage``'s parameter stamp at ``path`` (written by the workflow)."""
-    from pathlib import Path
-    from tactilepipe.core.errors import InputError
-    try:
-        stamp = json.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise InputError(path, "no such parameter stamp") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(path, f"not a parameter stamp (not JSON: {exc})") from None
-    if not isinstance(stamp, dict) or stamp.get("stage") != stage or not isinstance(stamp.get("values"), dict):
-        raise InputError(path, f"not the parameter stamp of {stage} (it names "
-                               f"{stamp.get('stage') if isinstance(stamp, dict) else None!r})")
-    return stamp["values"]
 
 
 def _progress(iterable, desc: str, total: int | None = None):

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tactilepipe.cli.common import param_overrides, stamp_values
+from tactilepipe.cli.common import param_overrides
 
 
 def write_scene_provenance(args, out_dir: Path) -> None:
@@ -16,6 +16,7 @@ def write_scene_provenance(args, out_dir: Path) -> None:
     from tactilepipe.core.config import declared, load_params
     from tactilepipe.pipeline import codedeps
     from tactilepipe.pipeline.provenance import write_provenance
+    from tactilepipe.pipeline.stamps import stamp_values
     if args.stamp:
         stamps = Path(args.stamp).parent
         values = {s: stamp_values(str(stamps / f"{s}.json"), s) for s in args.provenance_stages}
