@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 from tactilepipe.cli import main as cli
 from tactilepipe.core.config import load_params
 from tactilepipe.papillarray.shards import ingest_bag
+from tactilepipe.volume import report
 from tactilepipe.volume import simulate as vsim
 
 from support.bags import write_ros1_bag
@@ -141,6 +142,8 @@ def test_an_offset_or_a_gain_on_one_sensor_of_one_lift_is_named_and_left_out(ses
     assert (qc.drop(index="s/v150_main_l00")["stands_out"] == "").all()
     kept = set(pd.read_parquet(tmp_path / "dataset.parquet", columns=["lift"])["lift"])
     assert kept == set(qc.index) - {"s/v150_main_l00"}
+    named = report._lifts_left_out(tmp_path / "qc.csv")        # metrics.json lifts_standing_out
+    assert list(named) == ["s/v150_main_l00"] and named["s/v150_main_l00"] == qc.loc["s/v150_main_l00", "stands_out"]
 
 
 @settings(max_examples=6, derandomize=True, deadline=None,
