@@ -203,3 +203,29 @@ def test_a_label_just_beyond_the_fits_tolerance_is_caught_on_the_furthest_lift(s
     assert kept_ml > 0
     volume = worst["volume_ml"] + (kept_ml if worst["volume_ml"] < kept_ml else -kept_ml)
     assert volume_dataset(session, tmp_path, relabel(session["labels"], name, f"{volume:.1f}")) == 0
+
+
+def _evidence(volumes, container_n=0.55, noise=0.01, seed=0):
+    rng = np.random.default_rng(seed)
+    v = np.asarray(volumes, float)
+    return pd.DataFrame({"lift": [f"s/l{i}" for i in range(len(v))], "volume_ml": v,
+                         "carried_n": container_n + 9.81e-3 * v + noise * rng.standard_normal(len(v))})
+
+
+def test_the_label_fit_on_evidence_alone():
+    """check_labels without a recording: a clean session is on the fit; a session of one volume
+    in microlitres, which has no slope to fit, is refused by the lower bound; a NaN load is refused,
+    never on the fit; a small session gets the lower bound only and says so."""
+    from tactilepipe.core.errors import InputError
+    from tactilepipe.volume.witness import check_labels
+    checks = SMOKE["volume_checks"]
+    ev = _evidence(np.repeat(VOLUMES, 2))
+    assert all(c.startswith("on the session's fit") for c in check_labels(ev, checks, "lifts.csv"))
+    one = _evidence([300.0] * 10).assign(volume_ml=300.0)
+    assert "one volume" in check_labels(one, checks, "lifts.csv")[0]
+    with pytest.raises(InputError, match=r"lifts.csv: lift s/l0: lifts.csv gives 300000 ml"):
+        check_labels(one.assign(volume_ml=300000.0), checks, "lifts.csv")      # millilitres typed as microlitres
+    with pytest.raises(InputError, match=r"lifts.csv: lift s/l3: the pads' carried load is nan: no weight to check"):
+        check_labels(ev.assign(carried_n=np.where(ev.index == 3, np.nan, ev["carried_n"])), checks, "lifts.csv")
+    small = _evidence([0.0, 100.0, 300.0])
+    assert check_labels(small, checks, "lifts.csv")[0].startswith("lower bound only: 3 lifts")

@@ -18,9 +18,10 @@ Two kinds of evidence, neither of which comes from the label:
   (``label_slope_rel_tol``), or a lift off the line by more than ``outlier_k`` robust standard
   deviations of the session's residuals and ``label_floor_n``, is refused with its numbers.
 
-A session of fewer than ``min_session_lifts`` kept lifts cannot be compared: its lifts are only
-held to the lower bound (the pads carry at least the labelled water's weight, whatever the
-container weighs), and ``qc.csv`` says so.
+Where no slope can be fitted (fewer than ``min_session_lifts`` kept lifts, or one volume), the
+lifts are held to a lower bound instead: the pads carry at least the labelled water's weight (80 %,
+less 0.5 N), whatever the container weighs. A session under ``min_session_lifts`` is not compared
+or fitted at all, and ``qc.csv`` says so.
 """
 
 from __future__ import annotations
@@ -101,16 +102,20 @@ def check_labels(ev: pd.DataFrame, checks: dict, source) -> list[str]:
     each lift's label check for qc.csv. ``ev``: columns lift, volume_ml and carried_n; ``source``
     names the error (the session's lifts.csv)."""
     volume, load = ev["volume_ml"].to_numpy(np.float64), ev["carried_n"].to_numpy(np.float64)
-    if len(ev) < checks["min_session_lifts"]:
+    if not np.isfinite(load).all():        # a fit through NaN would be NaN, and every comparison with it false
+        raise InputError(source, "; ".join(f"lift {lift}: the pads' carried load is {c}" for lift, c
+                                           in zip(ev["lift"], load) if not np.isfinite(c)) + ": no weight to check")
+    n_volumes = len(np.unique(volume))
+    if len(ev) < checks["min_session_lifts"] or n_volumes == 1:     # no slope to fit: the lower bound's unit check
         low = LOWER_BOUND_SHARE * volume * WATER_N_PER_ML - LOWER_BOUND_SLACK_N
         bad = [f"lift {lift}: lifts.csv gives {v:g} ml ({v * WATER_N_PER_ML:.2f} N of water) but the pads carry "
-               f"{c:.2f} N off the table" for lift, v, c, lo in zip(ev["lift"], volume, load, low) if c < lo]
+               f"{c:.2f} N off the table" for lift, v, c, lo in zip(ev["lift"], volume, load, low) if not c >= lo]
         if bad:
             raise InputError(source, "; ".join(bad) + ": a wrong row or unit in lifts.csv (volume_ml is in "
                                                       "millilitres)?")
+    if len(ev) < checks["min_session_lifts"]:
         return [f"lower bound only: {len(ev)} lifts in the session, under volume_checks.min_session_lifts "
                 f"{checks['min_session_lifts']}"] * len(ev)
-    n_volumes = len(np.unique(volume))
     slope = _theil_sen(volume, load) if n_volumes > 1 else WATER_N_PER_ML
     ratio = slope / WATER_N_PER_ML
     if not abs(ratio - 1) <= checks["label_slope_rel_tol"]:
@@ -133,5 +138,5 @@ def check_labels(ev: pd.DataFrame, checks: dict, source) -> list[str]:
             f"{(load[i] - intercept) / slope:.0f} ml" for i in off)
             + f" (fit over {len(ev)} lifts: container {intercept:.3f} N + {slope * 1000:.3f} mN per ml). A wrong "
               f"label in lifts.csv, or a gain on both sensors of that lift")
-    label_ml = tol / slope
-    return [f"on the session's fit: {r:+.3f} N of ± {tol:.3f} N (about {label_ml:.0f} ml)" for r in resid]
+    note = "" if n_volumes > 1 else " (one volume: water's slope assumed, not fitted)"
+    return [f"on the session's fit: {r:+.3f} N of ± {tol:.3f} N (about {tol / slope:.0f} ml){note}" for r in resid]
