@@ -37,7 +37,8 @@ def test_a_reversed_y_axis_is_named(sim_lifts, smoke_params, tmp_path, method, s
     seg = {**smoke_params["segment"], "method": method}
     with pytest.raises(InputError, match=r"^" + str(shard) + r": Fy has the wrong sign while the container is "
                                          r"lifted on .*" + named + r".*papillarray_axes"):
-        build_dataset(lifts_of(shard, item["lift"].volume_ml), seg, smoke_params["papillarray_axes"])
+        build_dataset(lifts_of(shard, item["lift"].volume_ml), seg, smoke_params["papillarray_axes"],
+                      smoke_params["volume_checks"])
 
 
 @pytest.mark.parametrize("method", ["auto", "force"])
@@ -47,17 +48,20 @@ def test_a_reversed_z_axis_is_named(sim_lifts, smoke_params, tmp_path, method):
     seg = {**smoke_params["segment"], "method": method}
     with pytest.raises(InputError, match=r"^" + str(shard) + r": the grip force Fz has the wrong sign while the "
                                          r"container is lifted on sensor 0 \(Fz -[56]\.\d+ N\).*z: '-z'"):
-        build_dataset(lifts_of(shard, item["lift"].volume_ml), seg, smoke_params["papillarray_axes"])
+        build_dataset(lifts_of(shard, item["lift"].volume_ml), seg, smoke_params["papillarray_axes"],
+                      smoke_params["volume_checks"])
 
 
 def test_the_axis_map_reads_a_reversed_sensor_right(sim_lifts, smoke_params, tmp_path):
     item = sim_lifts[1]
     lifts = lifts_of(item["shard"], item["lift"].volume_ml)
-    good, _ = build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"])
+    good, _ = build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"],
+                            smoke_params["volume_checks"])
     shard = reversed_shard(item["shard"], tmp_path / "rev.parquet", [1])
     axes = copy.deepcopy(smoke_params["papillarray_axes"])
     axes["sensor_1"]["y"] = "-y"
-    mapped, _ = build_dataset(lifts_of(shard, item["lift"].volume_ml), smoke_params["segment"], axes)
+    mapped, _ = build_dataset(lifts_of(shard, item["lift"].volume_ml), smoke_params["segment"], axes,
+                              smoke_params["volume_checks"])
     np.testing.assert_allclose(mapped["fy1"], good["fy1"], rtol=1e-6)
     assert (mapped["fy1"] > 0).mean() > 0.95
 

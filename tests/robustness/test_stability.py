@@ -267,7 +267,8 @@ def test_zero_force_lift_is_refused_by_force_segmentation(quiet, smoke_params, t
     lifts = pd.DataFrame([{"lift": "s/empty", "session": "s", "volume_ml": 100.0, "set": "main",
                            "shard": str(tmp_path / "empty.parquet")}])
     with pytest.raises(InputError, match="never leaves the table"):
-        dataset.build_dataset(lifts, {**smoke_params["segment"], "method": "force"}, smoke_params["papillarray_axes"])
+        dataset.build_dataset(lifts, {**smoke_params["segment"], "method": "force"}, smoke_params["papillarray_axes"],
+                              smoke_params["volume_checks"])
 
 
 def test_zero_force_lift_is_not_silently_kept_by_pose_segmentation(smoke_params, tmp_path):
@@ -279,7 +280,8 @@ def test_zero_force_lift_is_not_silently_kept_by_pose_segmentation(smoke_params,
     lifts = pd.DataFrame([{"lift": "s/empty", "session": "s", "volume_ml": 100.0, "set": "main",
                            "shard": str(tmp_path / "empty.parquet")}])
     try:
-        data, qc = dataset.build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"])
+        data, qc = dataset.build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"],
+                                         smoke_params["volume_checks"])
     except InputError:
         return                                            # refused with a message: fine
     assert "dropped" in qc.columns and qc["dropped"].sum() == 1

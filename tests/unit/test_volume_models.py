@@ -121,7 +121,7 @@ def test_lift_that_never_leaves_the_table(tmp_path, smoke_params):
     assert str(shard) in str(err.value)
     lifts = pd.DataFrame([{"lift": "s/x", "session": "s", "volume_ml": 300.0, "set": "main", "shard": str(shard)}])
     with pytest.raises(InputError, match="never leaves the table"):
-        build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"])
+        build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"], smoke_params["volume_checks"])
 
 
 def test_lift_without_load_never_leaves_the_table_by_force(tmp_path, smoke_params):
@@ -148,7 +148,8 @@ def test_recording_without_pose(tmp_path, smoke_params):
 def test_build_dataset_keeps_the_off_table_samples(sim_lifts, smoke_params):
     lifts = pd.DataFrame([{"lift": f"sim/{it['lift'].name}", "session": "sim", "volume_ml": it["lift"].volume_ml,
                            "set": "main", "shard": str(it["shard"])} for it in sim_lifts])
-    data, qc = build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"])
+    data, qc = build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"],
+                             smoke_params["volume_checks"])
     assert list(data.columns) == ["lift", "session", "volume_ml", "set", "t", "fx0", "fy0", "fz0", "fx1", "fy1", "fz1"]
     assert list(qc["lift"]) == list(lifts["lift"])
     assert (qc["segment_method"] == "pose").all()
@@ -432,7 +433,8 @@ def test_a_grasp_that_slides_is_flagged_and_left_out(tmp_path, smoke_params, mu_
     ingest_bag(tmp_path / "steady.bag", tmp_path / "steady.parquet")
     lifts = pd.DataFrame([steady, {"lift": "s/heavy", "session": "s", "volume_ml": 300.0, "set": "main",
                                    "shard": str(tmp_path / "l.parquet")}])
-    data, qc = build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"])
+    data, qc = build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"],
+                             smoke_params["volume_checks"])
     heavy = qc.set_index("lift").loc["s/heavy"]
     assert bool(heavy["slipped"]) is slides and bool(heavy["slip_s"] >= SLIP_HOLD_S) is slides
     assert ("s/heavy" in set(data["lift"])) is not slides
@@ -444,8 +446,9 @@ def test_a_label_heavier_than_what_the_pads_carry_is_refused(sim_lifts, smoke_pa
     item = sim_lifts[1]
     lifts = pd.DataFrame([{"lift": "s/x", "session": "s", "volume_ml": item["lift"].volume_ml, "set": "main",
                            "shard": str(item["shard"])}])
-    build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"])          # its own label: kept
+    build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"],
+                  smoke_params["volume_checks"])          # its own label: kept
     lifts["volume_ml"] = 5000.0                                                              # litres typed as ml
     with pytest.raises(InputError, match=r"lift s/x: lifts.csv gives 5000 ml \(49.05 N of water\) but the pads "
                                          r"carry \d\.\d\d N off the table"):
-        build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"])
+        build_dataset(lifts, smoke_params["segment"], smoke_params["papillarray_axes"], smoke_params["volume_checks"])

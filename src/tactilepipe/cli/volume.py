@@ -35,6 +35,7 @@ def cmd_volume_simulate(args, p) -> None:
 
 
 @command("papillarray-ingest", "PapillArray bag(s) -> Parquet shard(s) (the volume and drift studies)",
+         params=("papillarray_ingest",),
          args=(arg("bags", nargs="+", metavar="BAG SHARD", help="pairs: input bag, output shard"),))
 def cmd_papillarray_ingest(args, p) -> None:
     from tactilepipe.papillarray.shards import ingest_bag
@@ -42,19 +43,19 @@ def cmd_papillarray_ingest(args, p) -> None:
         raise TactilepipeError(f"papillarray-ingest takes BAG SHARD pairs; got {len(args.bags)} paths "
                                f"(the last, {args.bags[-1]}, has no shard)")
     for bag, shard in zip(args.bags[0::2], args.bags[1::2]):
-        info = ingest_bag(bag, shard)
+        info = ingest_bag(bag, shard, max_span_offset_s=p["papillarray_ingest"]["max_span_offset_s"])
         print(json.dumps(info))
 
 
 @command("volume-dataset", "segment the off-table phase of every lift",
-         params=("volume_sessions", "segment", "papillarray_axes"),
+         params=("volume_sessions", "segment", "papillarray_axes", "volume_checks"),
          args=(arg("--raw-root", default="raw/volume"), arg("--shard-root", default="results/volume/shards"),
                arg("--out", required=True), arg("--qc", required=True)))
 def cmd_volume_dataset(args, p) -> None:
     from tactilepipe.core.atomic import write_parquet, write_text
     from tactilepipe.volume.dataset import build_dataset, session_lifts
     lifts = session_lifts(p["volume_sessions"], Path(args.raw_root), Path(args.shard_root))
-    data, qc = build_dataset(lifts, p["segment"], p["papillarray_axes"])
+    data, qc = build_dataset(lifts, p["segment"], p["papillarray_axes"], p["volume_checks"])
     write_parquet(args.out, data)
     write_text(args.qc, qc.to_csv(index=False))
 
@@ -141,8 +142,8 @@ def cmd_volume_report(args, p) -> None:
 
 
 @command("volume-regimes", "Table 1 of the volume study under each grasp regime (params.yaml volume_regimes)",
-         params=("scale", "seed", "simulate_volume", "segment", "papillarray_axes", "folds", "mlp", "baseline",
-                 "volume_sensor", "volume_regimes"),
+         params=("scale", "seed", "simulate_volume", "segment", "papillarray_axes", "volume_checks",
+                 "folds", "mlp", "baseline", "volume_sensor", "volume_regimes"),
          args=(arg("--out-dir", required=True, help="e.g. results/volume_regimes"),
                arg("--regimes", nargs="*", help="only these regimes (default: all of volume_regimes)"),
                arg("--jobs", type=int, default=1, help="worker processes for the simulation (default 1)")))

@@ -60,6 +60,28 @@ def _decode_error(path: Path, topic: str, exc: ValueError) -> InputError:
     return InputError(path, str(exc), topic)
 
 
+def check_sensor_spans(path: Path, sensors: dict, max_offset_s: float) -> None:
+    """InputError when the two sensors' header stamps do not cover the same span (their first or
+    last stamps differ by more than ``max_offset_s``): the driver publishes both sensors in one
+    loop, so a sensor whose stamps start or end elsewhere is on another clock, or lost part of the
+    recording. Its readings would be paired with the other sensor's at other times, in silence."""
+    if len(sensors) < 2:
+        return
+    first = {s: int(dec["stamp_ns"][0]) for s, dec in sensors.items() if len(dec["stamp_ns"])}
+    last = {s: int(dec["stamp_ns"][-1]) for s, dec in sensors.items() if len(dec["stamp_ns"])}
+    if len(first) < 2:
+        return
+    ref = first[min(first)]
+    start_off, end_off = (first[1] - first[0]) / 1e9, (last[1] - last[0]) / 1e9
+    if max(abs(start_off), abs(end_off)) > max_offset_s:
+        spans = " and ".join(f"sensor {s} {(first[s] - ref) / 1e9:.3f}-{(last[s] - ref) / 1e9:.3f} s"
+                             for s in sorted(first))
+        raise InputError(path, f"the two sensors do not cover the same span ({spans}, from sensor 0's first "
+                               f"stamp): sensor 1 starts {start_off:+.3f} s and ends {end_off:+.3f} s from "
+                               f"sensor 0, more than papillarray_ingest.max_span_offset_s {max_offset_s:g} s. "
+                               f"A sensor on another clock, or one that stopped publishing?")
+
+
 def read_papillarray_bag(path: str | Path, hub: int = 0, pose_topic: str = DEFAULT_POSE_TOPIC) -> dict:
     """Decode a bag into {"sensors": {0: arrays, 1: arrays}, "pose": (stamps, z) or None}."""
     path = Path(path)
@@ -124,9 +146,14 @@ def shard_table(decoded: dict) -> pa_.Table:
     return pa_.table(columns)
 
 
-def ingest_bag(bag: str | Path, shard: str | Path, hub: int = 0, pose_topic: str = DEFAULT_POSE_TOPIC) -> dict:
-    """Validate and convert one bag into one Parquet shard (written atomically); returns counts."""
+def ingest_bag(bag: str | Path, shard: str | Path, hub: int = 0, pose_topic: str = DEFAULT_POSE_TOPIC,
+               max_span_offset_s: float | None = None) -> dict:
+    """Validate and convert one bag into one Parquet shard (written atomically); returns counts.
+    With ``max_span_offset_s`` (the stages pass params.yaml papillarray_ingest's), a bag whose two
+    sensors' spans differ by more is refused (check_sensor_spans)."""
     decoded = read_papillarray_bag(bag, hub, pose_topic)
+    if max_span_offset_s is not None:
+        check_sensor_spans(Path(bag), decoded["sensors"], max_span_offset_s)
     table = shard_table(decoded)
     with atomic_path(shard) as tmp:
         pq.write_table(table, tmp, compression="zstd")

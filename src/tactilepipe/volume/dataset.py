@@ -22,6 +22,7 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from tactilepipe.core.errors import InputError
+from tactilepipe.volume import witness
 
 FORCE_COLS = ["gfx", "gfy", "gfz"]
 PILLAR_LOADED_N = 0.2        # N: a pillar pressing harder than this carries load
@@ -173,15 +174,16 @@ def off_table_segment(rec: dict, seg: dict, path: str | Path = "?") -> tuple[int
 
 
 def session_lifts(sessions: list[str], raw_root: Path, shard_root: Path) -> pd.DataFrame:
-    """One row per lift of the sessions (lift, session, volume_ml, set, shard), from each session's
-    lifts.csv; the shard of raw_root/<session>/<bag> is shard_root/<session>/<bag stem>.parquet."""
+    """One row per lift of the sessions (lift, session, volume_ml, set, shard, labels: the lifts.csv),
+    from each session's lifts.csv; the shard of raw_root/<session>/<bag> is shard_root/<session>/<bag stem>.parquet."""
     from tactilepipe.volume.labels import read_session_labels
     rows = []
     for session in sessions:
         for row in read_session_labels(Path(raw_root) / session):
             stem = Path(row["bag"]).stem
             rows.append({"lift": f"{session}/{stem}", "session": session, "volume_ml": row["volume_ml"],
-                         "set": row["set"], "shard": str(Path(shard_root) / session / f"{stem}.parquet")})
+                         "set": row["set"], "shard": str(Path(shard_root) / session / f"{stem}.parquet"),
+                         "labels": str(Path(raw_root) / session / "lifts.csv")})
     return pd.DataFrame(rows)
 
 
@@ -220,55 +222,53 @@ def _check_fz_sign(rec: dict, start: int, stop: int, noise: float, path) -> None
                                f"z axis? Map it in params.yaml papillarray_axes (e.g. z: '-z')")
 
 
-WATER_N_PER_ML = 9.81e-3      # 1 g of water per ml, in N
-LABEL_WEIGHT_SHARE = 0.8      # the pads must carry at least this share of the labelled water's weight,
-LABEL_WEIGHT_SLACK_N = 0.5    # less this much (bias and drift of the two sensors), whatever the container weighs
+def build_dataset(lifts: pd.DataFrame, seg: dict, axes: dict, checks: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Off-table samples of every lift, and a QC row per lift.
 
+    Left out of the samples, each named in its QC row: a lift whose grasp slid for SLIP_HOLD_S or
+    longer off the table (the pads' slip flags; ``slipped``, with the time it slid, ``slip_s``),
+    and a lift whose sensors stand out from its session's (``stands_out``, with the evidence;
+    volume/witness.py). The labels of the lifts kept are then checked against their carried load
+    over each session (``label_check``); a label the load contradicts is an InputError.
 
-def _check_label_weight(row, carried_n: float, slid_s: float) -> None:
-    """A lift's label against what the pads weigh: the container and its water hang from the pads
-    off the table, so they carry at least the labelled water's weight (the container's own, which
-    the analysis does not know, only adds). A label far above it is a wrong row or unit in
-    lifts.csv, refused naming the lift; a grasp that slid is judged by its slip instead."""
-    water_n = row.volume_ml * WATER_N_PER_ML
-    if slid_s < SLIP_HOLD_S and carried_n < LABEL_WEIGHT_SHARE * water_n - LABEL_WEIGHT_SLACK_N:
-        raise InputError(row.shard, f"lift {row.lift}: lifts.csv gives {row.volume_ml:g} ml ({water_n:.2f} N of water) "
-                                    f"but the pads carry {carried_n:.2f} N off the table: a wrong row or unit in "
-                                    f"lifts.csv (volume_ml is in millilitres)?")
-
-
-def build_dataset(lifts: pd.DataFrame, seg: dict, axes: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Off-table samples of every lift, and a QC row per lift. A lift whose grasp slid for
-    SLIP_HOLD_S or longer off the table (the pads' slip flags) is left out of the samples and
-    marked ``slipped`` in its QC row, with the time it slid (``slip_s``).
-
-    lifts: columns lift (unique id), session, volume_ml, set, shard (path); axes: params.yaml
-    papillarray_axes.
+    lifts: columns lift (unique id), session, volume_ml, set, shard (path), and optionally labels
+    (the session's lifts.csv, named by a label error); axes: params.yaml papillarray_axes; checks:
+    params.yaml volume_checks.
     """
-    frames, qc = [], []
+    parts, qc = {}, []
     for row in lifts.itertuples(index=False):
         rec = apply_axes(read_shard(row.shard), axes)
         start, stop, used = off_table_segment(rec, seg, row.shard)
         slid = sustained_slip(rec, start, stop)
-        part = pd.DataFrame({k: rec[k][start:stop] for k in
-                             ("t", "fx0", "fy0", "fz0", "fx1", "fy1", "fz1")})
-        _check_label_weight(row, float((part["fy0"] + part["fy1"]).median()), slid)
-        part.insert(0, "lift", row.lift)
-        part.insert(1, "session", row.session)
-        part.insert(2, "volume_ml", row.volume_ml)
-        part.insert(3, "set", row.set)
-        if slid < SLIP_HOLD_S:
-            frames.append(part)
+        dt = np.median(np.diff(rec["t"])) if len(rec["t"]) > 1 else 1.0
+        rest = max(2, 2 * max(1, int(round(seg["force_smooth_s"] / dt))))    # as _vertical_load's rest
+        part = pd.DataFrame({k: rec[k][start:stop] for k in ("t", "fx0", "fy0", "fz0", "fx1", "fy1", "fz1")})
+        for i, (name, value) in enumerate([("lift", row.lift), ("session", row.session),
+                                           ("volume_ml", row.volume_ml), ("set", row.set)]):
+            part.insert(i, name, value)
+        parts[row.lift] = part
         qc.append({"lift": row.lift, "session": row.session, "volume_ml": row.volume_ml, "set": row.set,
                    "samples": len(rec["t"]), "off_table_samples": stop - start,
                    "off_table_s": float(rec["t"][stop - 1] - rec["t"][start]), "segment_method": used,
                    "mean_fy0": float(part["fy0"].mean()), "mean_fz0": float(part["fz0"].mean()),
-                   "slip_s": slid, "slipped": slid >= SLIP_HOLD_S})
+                   "slip_s": slid, "slipped": slid >= SLIP_HOLD_S,
+                   **witness.lift_evidence(rec, start, stop, rest)})
     qc = pd.DataFrame(qc)
-    if not frames:
-        raise InputError(lifts["shard"].iloc[0], f"every lift's grasp slid off the table (longest slides "
-                                                 f"{qc['slip_s'].min():.2f}-{qc['slip_s'].max():.2f} s): no lift "
-                                                 f"weighs its container. If these grasps held, the sensor's "
-                                                 f"slip_state uses a non-zero code for not slipping "
-                                                 f"(docs/papillarray.md)")
-    return pd.concat(frames, ignore_index=True), qc
+    qc["stands_out"], qc["label_check"] = "", "not checked: slipped or stands out"
+    sources = (lifts.set_index("lift")["labels"] if "labels" in lifts else lifts.set_index("lift")["shard"])
+    for session, rows in qc.groupby("session", sort=False):
+        held = rows[~rows["slipped"]]
+        if len(held) >= checks["min_session_lifts"]:
+            for lift, evidence in witness.standing_out(held, checks).items():
+                qc.loc[qc["lift"] == lift, "stands_out"] = evidence
+        kept = qc.loc[(qc["session"] == session) & ~qc["slipped"] & (qc["stands_out"] == "")]
+        if len(kept):
+            qc.loc[kept.index, "label_check"] = witness.check_labels(kept, checks, sources[kept["lift"].iloc[0]])
+    keep = ~qc["slipped"] & (qc["stands_out"] == "")
+    if not keep.any():
+        raise InputError(lifts["shard"].iloc[0], f"no lift is left: {int(qc['slipped'].sum())} slid off the table "
+                                                 f"(longest slides {qc['slip_s'].min():.2f}-{qc['slip_s'].max():.2f} "
+                                                 f"s), {int((qc['stands_out'] != '').sum())} stand out from their "
+                                                 f"session. If these grasps held, the sensor's slip_state uses a "
+                                                 f"non-zero code for not slipping (docs/papillarray.md)")
+    return pd.concat([parts[lift] for lift in qc.loc[keep, "lift"]], ignore_index=True), qc

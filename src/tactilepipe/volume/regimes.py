@@ -86,7 +86,7 @@ def analyse_session(p: dict, session: str, raw_root: Path, shard_root: Path) -> 
     """The volume scene's analysis of one session: R² per modality and of the baseline over the
     folds, mu*, and the per-lift QC table (with the on-table grip of ``grip_on_table``)."""
     lifts_table = session_lifts([session], raw_root, shard_root)
-    data, qc = build_dataset(lifts_table, p["segment"], p["papillarray_axes"])
+    data, qc = build_dataset(lifts_table, p["segment"], p["papillarray_axes"], p["volume_checks"])
     qc = qc.merge(grip_on_table(lifts_table, p["segment"], p["volume_regimes"]["on_table"], p["volume_sensor"]),
                   on="lift", how="left")
     lifts = data[["lift", "volume_ml", "set"]].drop_duplicates("lift")

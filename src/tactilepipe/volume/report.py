@@ -74,6 +74,16 @@ def _slipped_lifts(qc_path: Path) -> list[str]:
     return sorted(qc.loc[qc["slipped"], "lift"]) if "slipped" in qc else []
 
 
+def _lifts_left_out(qc_path: Path) -> dict[str, str]:
+    """Lifts left out of the models because their sensors stood out from their session's, with
+    the evidence (volume/witness.py)."""
+    qc = pd.read_csv(qc_path, dtype={"stands_out": str}, keep_default_na=False)
+    if "stands_out" not in qc:
+        return {}
+    out = qc[qc["stands_out"] != ""]
+    return dict(sorted(zip(out["lift"], out["stands_out"])))
+
+
 def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
     modalities = list(p["mlp"]["modalities"])
     fold_tables = {m: pd.read_csv(res / "mlp" / m / "folds.csv") for m in modalities}
@@ -171,6 +181,7 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
         "grid_best": grid.iloc[0][["hidden_units", "alpha", "learning_rate", "r2_mean"]].to_dict(),
         "scale": p["scale"],
         "lifts_slipped": _slipped_lifts(res / "qc.csv"),
+        "lifts_standing_out": _lifts_left_out(res / "qc.csv"),
     }
     metrics = _json_safe(metrics)
     write_json(res / "metrics.json", metrics)

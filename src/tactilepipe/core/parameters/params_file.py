@@ -8,8 +8,8 @@ from tactilepipe.core.parameters.base import Group, RequiredKeys, SessionName, U
 from tactilepipe.core.parameters.resources import Resources
 from tactilepipe.core.parameters.tool import Predict, PublicData, ToolIngest, ToolSplit, ToolSync, ToolTrain
 from tactilepipe.core.parameters.tool_sim import SimulateTool
-from tactilepipe.core.parameters.volume import (Baseline, Drift, Folds, Mlp, PapillarrayAxes, Segment,
-                                                SimulateDrift, SimulateVolume, VolumeRegimes)
+from tactilepipe.core.parameters.volume import (Baseline, Drift, Folds, Mlp, PapillarrayAxes, PapillarrayIngest,
+                                                Segment, SimulateDrift, SimulateVolume, VolumeChecks, VolumeRegimes)
 
 
 class ParameterGroups(Group):
@@ -18,6 +18,8 @@ class ParameterGroups(Group):
     simulate_volume: SimulateVolume
     simulate_drift: SimulateDrift
     segment: Segment
+    volume_checks: VolumeChecks
+    papillarray_ingest: PapillarrayIngest
     folds: Folds
     mlp: Mlp
     baseline: Baseline

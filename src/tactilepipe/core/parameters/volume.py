@@ -114,6 +114,32 @@ class Segment(Group):
     min_off_table_s: PositiveFloat
 
 
+class PapillarrayIngest(Group):
+    """Checks of a PapillArray bag as it is ingested (the volume and drift studies)."""
+
+    max_span_offset_s: PositiveFloat = Field(description="s the two sensors' first (and last) header stamps may "
+                                                         "differ: the driver publishes both in one loop")
+
+
+class VolumeChecks(Group):
+    """Each lift's label and sensors against the other lifts of its session (volume/witness.py)."""
+
+    min_session_lifts: int = Field(ge=3, description="fewer lifts in a session: no session comparison or label "
+                                                     "fit, only the lower bound (the pads carry the labelled water)")
+    outlier_k: PositiveFloat = Field(description="robust standard deviations (1.4826 x MAD over the session) "
+                                                 "beyond which a lift stands out")
+    rest_floor_n: PositiveFloat = Field(description="N: a sensor's rest level within this of the session's never "
+                                                    "stands out")
+    load_share_floor_n: PositiveFloat = Field(description="N: a pad's share of the carried load within this of "
+                                                          "the session's never stands out")
+    grip_share_floor: float = Field(gt=0, lt=0.5, description="a pad's share of the two pads' grip within this of "
+                                                              "the session's never stands out")
+    label_floor_n: PositiveFloat = Field(description="N: a lift's carried load within this of the session's fit "
+                                                     "is never off it")
+    label_slope_rel_tol: float = Field(gt=0, lt=1, description="the fit's slope must be 1 g of water per ml x g "
+                                                               "within this fraction")
+
+
 class Folds(Group):
     """Repeated seeded train/test draws stratified by volume."""
 
