@@ -394,8 +394,9 @@ def reported(files, scene):
         if p.name in ("provenance.json", "runtime.json"):
             out.append(f)
             continue
-        if p.suffix == ".md" and p.parent.name == "tables":
-            # write_table's HTML twin is the report item (the report shows HTML, Markdown only as a download)
+        if p.suffix == ".md" and p.name != "qc.md":
+            # every Markdown result but the tool data QC page has an HTML twin (write_table, the drift
+            # fits), which is the report item: the report shows HTML as a page, Markdown only as a download
             out.append(f)
             f, p = str(p.with_suffix(".html")), p.with_suffix(".html")
         kind = {".png": "figures", ".json": "metrics"}.get(p.suffix, "tables")

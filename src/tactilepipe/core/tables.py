@@ -56,6 +56,32 @@ def html_table(title: str, columns: list[str], rows: list[list[str]]) -> str:
             f"<thead><tr>{head}</tr></thead>\n<tbody>\n{body}\n</tbody>\n</table>\n")
 
 
+def markdown_html(text: str) -> str:
+    """HTML of the Markdown this project writes: '#' headings, paragraphs and pipe tables (a
+    table's first row is its header, its second the alignment row)."""
+    out, table = [], []
+
+    def flush():
+        if table:
+            rows = [[c.strip() for c in line.strip().strip("|").split("|")] for line in table]
+            page = html_table("", rows[0], rows[2:])
+            out.append(page.replace("<caption></caption>\n", "").split("</style>\n", 1)[1])
+            table.clear()
+
+    for line in text.splitlines():
+        if line.lstrip().startswith("|"):
+            table.append(line)
+            continue
+        flush()
+        if line.startswith("#"):
+            level = min(len(line) - len(line.lstrip("#")) + 2, 6)
+            out.append(f"<h{level}>{html.escape(line.lstrip('#').strip())}</h{level}>")
+        elif line.strip():
+            out.append(f"<p>{html.escape(line.strip())}</p>")
+    flush()
+    return f"<style>{TABLE_CSS}</style>\n" + "\n".join(out) + "\n"
+
+
 TABLE_CSS = ("table.tactilepipe{border-collapse:collapse;font:13px/1.4 sans-serif;margin:0.5em 0}"
              "table.tactilepipe caption{text-align:left;font-weight:bold;padding:0.3em 0}"
              "table.tactilepipe th,table.tactilepipe td{border-bottom:1px solid #ddd;padding:2px 8px;text-align:left}"
