@@ -8,8 +8,8 @@ temporary git repository with a local-directory remote, at the smoke scale:
 2. experiments: `dvc exp run -S ...`, `dvc exp show --md`, `dvc exp diff`, `dvc params diff`;
 3. sharing: `dvc push`, a fresh `git clone` + `dvc pull` is byte-identical and Snakemake has
    nothing to do;
-4. plots: `dvc plots show` (offline) and `dvc plots diff` between two commits;
-and `snakemake --report` builds one self-contained HTML file."""
+4. plots: `dvc plots show` (offline) and `dvc plots diff` between two commits.
+(`snakemake --report`: tests/integration/test_report.py.)"""
 
 from __future__ import annotations
 
@@ -356,25 +356,6 @@ def test_plots_show_offline_and_diff_between_commits(repo, new_session):
     assert diff_html.count("<img") >= 2 * len(declared)
     images = sorted(p for p in (wd / "plots_diff").rglob("*.png"))
     assert len(images) >= 2 * len(declared)
-
-
-def test_snakemake_report_is_one_self_contained_html(repo, new_session):
-    wd = repo["wd"]
-    snakemake(wd, "--report", "report.html")
-    html = (wd / "report.html").read_text()
-    assert len(html) > 100_000
-    for name in ("r2_by_modality", "drift_curves", "pressing_strip", "window_heatmap", "table1_r2", "fits.md",
-                 "variants.md", "mu_max", "learning_rate"):
-        assert name in html, name
-    # the front page: each scene's headline tables first, the parameters (one block per group) after
-    desc = html[html.index("var workflow_desc = "):]
-    desc = desc[:desc.index("\n")]                      # the front page, one JavaScript string
-    assert "System Message" not in desc, "the front page's reStructuredText has an error"
-    front = [desc.index(h) for h in ("Volume from force", "Sensor drift", "Tool force from touch (study 000): normal",
-                                     "Tool force from touch (study 000): shear", "Parameters of this run")]
-    assert front == sorted(front)
-    assert desc.index("est_vol (baseline)") < front[-1] and desc.index("rest_frame_rmse_linear") < front[-1]
-    assert desc.index("<tt class=\\\"docutils literal\\\">tool_train</tt>") > front[-1]
 
 
 def test_marking_pulled_results_refuses_when_content_differs(repo, new_session):

@@ -436,6 +436,20 @@ def test_tables_show_undefined(tmp_path):
     assert pd.read_csv(tmp_path / "t.csv")["r2"].isna().tolist() == [False, True]
 
 
+def test_tables_show_each_number_once_and_as_html(tmp_path):
+    table = pd.DataFrame({"method": ["a<b", "c"], "R² (mean ± std)": ["0.9000 ± 0.0100", "undefined"],
+                          "r2_mean": [0.9, float("nan")], "n": [3, 0]})
+    write_table(table, tmp_path / "t", "Table & title", machine_only=("r2_mean",))
+    assert list(pd.read_csv(tmp_path / "t.csv").columns) == ["method", "R² (mean ± std)", "r2_mean", "n"]
+    md = (tmp_path / "t.md").read_text()
+    assert "r2_mean" not in md and "| a<b | 0.9000 ± 0.0100 | 3 |" in md
+    page = (tmp_path / "t.html").read_text()
+    assert "<caption>Table &amp; title</caption>" in page and "<td>a&lt;b</td>" in page and "r2_mean" not in page
+    assert '<td class="num">0.9000 ± 0.0100</td>' in page and "<td>undefined</td>" in page
+    with pytest.raises(ValueError, match="lacks"):
+        write_table(table, tmp_path / "u", "T", machine_only=("r2_median",))
+
+
 def test_volume_report_formats_undefined_r2():
     from tactilepipe.volume import report
     s = report._summary(pd.DataFrame({"fold": [0, 1, 2], "r2": [float("nan")] * 3}), 0.4)

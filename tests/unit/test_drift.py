@@ -195,6 +195,8 @@ def test_end_to_end_smoke_session(tmp_path, smoke_session, smoke_params):
     assert (out / "figures" / "drift_curves.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert json.loads((out / "metrics.json").read_text()) == metrics
     assert "| run | model |" in (out / "fits.md").read_text()
+    page = (out / "fits.html").read_text()
+    assert page.count("<table") == page.count("</table>") >= 2 and "<th>run</th>" in page and "|---|" not in page
 
     series = pd.read_csv(out / "drift_series.csv")
     assert len(series) == 14 and set(series["run"]) == {"unloaded", "loaded"}

@@ -394,8 +394,13 @@ def reported(files, scene):
         if p.name in ("provenance.json", "runtime.json"):
             out.append(f)
             continue
+        if p.suffix == ".md" and p.name != "qc.md":
+            # every Markdown result but the tool data QC page has an HTML twin (write_table, the drift
+            # fits), which is the report item: the report shows HTML as a page, Markdown only as a download
+            out.append(f)
+            f, p = str(p.with_suffix(".html")), p.with_suffix(".html")
         kind = {".png": "figures", ".json": "metrics"}.get(p.suffix, "tables")
         # a tool table named like a figure has its own caption
-        stem = f"{p.stem}_table" if group == "tool" and p.suffix == ".md" and p.stem in TOOL_MODEL_FIGURES else p.stem
+        stem = f"{p.stem}_table" if group == "tool" and p.suffix == ".html" and p.stem in TOOL_MODEL_FIGURES else p.stem
         out.append(report(f, caption=f"../report/{group}/{stem}.rst", category=scene, subcategory=kind))
     return out

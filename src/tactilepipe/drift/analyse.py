@@ -26,6 +26,7 @@ from scipy.optimize import minimize_scalar
 
 from tactilepipe.core.atomic import write_json, write_text
 from tactilepipe.core.metrics import r2_score
+from tactilepipe.core.tables import markdown_html
 from tactilepipe.drift import RUNS
 from tactilepipe.drift.recordings import drift_series
 EXP_MODEL = "exp_saturating"
@@ -253,7 +254,7 @@ def fits_markdown(fits: DriftFits, tolerance_n: float) -> str:
 
 def run(shards, session_meta: str | Path, out_dir: str | Path, params: dict) -> dict:
     """Shards of one drift session and its session.json -> metrics.json, drift_series.csv,
-    fits.csv, fits.md, figure."""
+    fits.csv, fits.md (and its HTML twin), figure."""
     from tactilepipe.drift import read_session_meta
     from tactilepipe.drift.figures import write_drift_figure  # matplotlib only when writing outputs
 
@@ -264,7 +265,9 @@ def run(shards, session_meta: str | Path, out_dir: str | Path, params: dict) -> 
     metrics = metrics_dict(series, fits, tolerance)
     write_text(out_dir / "drift_series.csv", series.to_csv(index=False, float_format="%.6g"))
     write_text(out_dir / "fits.csv", fits.table.to_csv(index=False, float_format="%.6g"))
-    write_text(out_dir / "fits.md", fits_markdown(fits, tolerance))
+    page = fits_markdown(fits, tolerance)
+    write_text(out_dir / "fits.md", page)
+    write_text(out_dir / "fits.html", markdown_html(page))     # what the Snakemake report shows
     write_drift_figure(out_dir / "figures" / "drift_curves.png", series, fits, tolerance)
     write_json(out_dir / "metrics.json", metrics)
     return metrics

@@ -134,7 +134,8 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
 
     tables = res / "tables"
     write_table(table1, tables / "table1_r2", "Table 1: R² on test lifts (mean ± std over folds; 95 % "
-                "interval of the mean, t with the resampled-folds correction)")
+                "interval of the mean, t with the resampled-folds correction)",
+                machine_only=("r2_mean", "r2_std", "ci95_low", "ci95_high"))
     write_table(table2, tables / "table2_volumes", f"Table 2: true vs estimated volume, MLP {best}", "{:.2f}")
     write_table(unseen_table, tables / "unseen_volumes", f"Unseen volumes, MLP {best}", "{:.2f}")
     write_table(runtime, tables / "runtime", "Error against run time (fit per fold, predict per sample)")
