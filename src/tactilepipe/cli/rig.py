@@ -107,4 +107,4 @@ def cmd_live(args, p) -> int | None:
     summary = run_live(Path(args.checkpoint), (resolve_source(args.left), resolve_source(args.right)), args.mode, p,
                        args.seconds, Path(args.log), Path(args.reference) if args.reference else None,
                        args.label_range)
-    return 0 if summary.pairs else 1
+    return 0 if summary.pairs and not summary.not_a_force else 1
