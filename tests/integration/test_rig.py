@@ -211,3 +211,46 @@ def test_a_port_that_prints_nothing_stops_before_any_trial_is_started(rig, tmp_p
     assert silent.returncode == 2 and "no sample line within 3 s of opening the port" in silent.stderr, silent.stderr
     assert not (tmp_path / "raw" / "tool" / "incomplete").exists()
     assert not list((tmp_path / "raw" / "tool" / ".recording" / "lab-5").iterdir())
+
+
+def test_an_arduino_that_ends_lines_with_cr_only_is_recorded_not_hung(rig, tmp_path):
+    """pyserial's readline waits for a \\n as long as bytes keep coming: such a board used to hang
+    `record` for good (the first-sample timeout fired, then stop() joined the blocked reader)."""
+    from tactilepipe.tool.formats.serial_log import read_serial_log
+    session = tmp_path / "raw" / "tool" / "lab-cr"
+    with StandInArduino(rig["root"] / "plan.npz", tmp_path / "truth.jsonl", garbage_every=0,
+                        line_end=b"\r") as arduino:
+        done = _record(rig, session, arduino, "--seconds", "1.5", "--no-prompt")
+    assert done.returncode == 0, done.stderr
+    trial = session / "screwdriver_1_normal_000"
+    serial = json.loads((trial / "meta.json").read_text())["notes"]["recorder"]["serial"]
+    assert set(serial["line_ends"]) == {"\\r"} and serial["line_ends"]["\\r"] >= 15, serial
+    log = read_serial_log(trial / "force.log")           # ingest's parser reads every sample line
+    assert len(log.arduino_ms) >= 15 and (np.diff(log.arduino_ms) > 0).all()
+
+
+def test_an_arduino_that_resets_mid_trial_is_found_while_recording(rig, tmp_path):
+    session = tmp_path / "raw" / "tool" / "lab-reset"
+    with StandInArduino(rig["root"] / "plan.npz", tmp_path / "truth.jsonl", reset_after_s=0.8) as arduino:
+        cut = _record(rig, session, arduino, "--seconds", "10", "--no-prompt")
+    assert cut.returncode == 1, cut.stderr
+    assert "stopped half-way (the Arduino's clock jumped back from" in cut.stderr and "it reset mid-trial" in cut.stderr
+    aside = tmp_path / "raw" / "tool" / "incomplete" / "lab-reset" / "screwdriver_1_normal_000"
+    meta = json.loads((aside / "meta.json").read_text())["notes"]
+    assert "reset mid-trial" in meta["incomplete"]
+    assert meta["recorder"]["seconds_recorded"] < 5                 # stopped when seen, not after 10 s
+
+
+@pytest.mark.parametrize("flag, name", [("--trial", "../../escaped_trial"), ("--trial", "a/b"), ("--trial", ".."),
+                                        ("--session", "raw/tool/../../escaped_session")])
+def test_a_trial_or_session_name_that_is_a_path_is_refused(rig, tmp_path, flag, name, capsys, monkeypatch):
+    from tactilepipe.cli.main import main
+    monkeypatch.chdir(tmp_path)
+    session = "raw/tool/lab-3" if flag == "--trial" else name
+    extra = [flag, name] if flag == "--trial" else []
+    status = main(["record", "--session", session, "--left", rig["sources"]["digit_left"], "--right",
+                   rig["sources"]["digit_right"], "--port", "/dev/null", "--calibration", str(rig["root"] / "nano17.cal"),
+                   "--tool", "knife", "--kind", "normal", "--seconds", "1", "--no-prompt", *extra])
+    err = capsys.readouterr().err
+    assert status == 2 and ("a name is letters, digits, _ - and ." in err or "without '..'" in err), err
+    assert not any(tmp_path.rglob("escaped*")) and not (tmp_path / "raw").exists()

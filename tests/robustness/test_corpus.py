@@ -471,9 +471,14 @@ CAL_CASES = {
                            "ForceUnits='furlongs' on <Calibration>: the unit must be one of N, kN, lbf", None),
     "no_units": (_cal(_GOOD).replace(' ForceUnits="N" TorqueUnits="N-mm"', ""), "no ForceUnits on <Calibration>", None),
     "six_equal_rows": (_cal({a: "10 0.2 0 0 0 0" for a in _GOOD}), "singular or nearly", None),
-    "one_huge_cell": (_cal({**_GOOD, "Fz": "0 0 1e300 0 0 0"}), "condition number|maps the ADC", None),
-    "huge_row": (_cal({**_GOOD, "Fy": "0 2000 0 0 0 0"}), r"maps the ADC's 5 V to 1e\+04 N, outside 6.25-2.5e\+03 N",
-                 "UserAxis Fy"),
+    "one_huge_cell": (_cal({**_GOOD, "Fz": "0 0 1e300 0 0 0"}), r"value 3 of the row, 1e\+300, is out of range",
+                      "UserAxis Fz"),
+    "namespaced_xml": (_cal(_GOOD).replace("<FTSensor>", '<FTSensor xmlns="urn:x">'),
+                       "the XML declares the namespace 'urn:x'", None),
+    "huge_row": (_cal({**_GOOD, "Fy": "0 2000 0 0 0 0"}), r"value 2 of the row, 2000, is out of range: alone it maps "
+                                                          r"the ADC's 5 V to 1e\+04 N, beyond 2.5e\+03 N", "UserAxis Fy"),
+    "huge_row_of_small_cells": (_cal({**_GOOD, "Fy": "0 400 400 400 0 0"}),
+                                r"the row maps the ADC's 5 V to 6e\+03 N, outside 6.25-2.5e\+03 N", "UserAxis Fy"),
 }
 for _name, (_text, _problem, _record) in CAL_CASES.items():
     @case(f"native_calibration/{_name}")

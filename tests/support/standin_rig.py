@@ -6,7 +6,9 @@ The stand-in Arduino behaves like the firmware docs/rig.md describes: it is rese
 opens, boots for ``boot_s``, then prints one line per sample at the simulated trial's rate on its
 own millisecond clock, each line delayed by a random jitter; a few garbage lines are mixed in.
 When the port closes it waits for the next open (the next trial). ``unplug_after_s`` makes it
-vanish mid-trial (the pty closes). It writes, for the test, one JSON line per open: when the port
+vanish mid-trial (the pty closes); ``line_end`` is what ends each line (the firmware's ``\\n``,
+or a board that ends them otherwise); ``reset_after_s`` reboots it once mid-trial (its clock
+restarts from 0). It writes, for the test, one JSON line per open: when the port
 opened and when the clock started (host ns), the simulated time of millis 0, and the garbage sent.
 """
 
@@ -54,9 +56,10 @@ class StandInArduino:
     """The stand-in Arduino process; ``port`` is the pty's slave path to record from."""
 
     def __init__(self, plan: Path, truth: Path, boot_s: float = 0.25, jitter_ms: float = 4.0,
-                 garbage_every: int = 17, unplug_after_s: float | None = None, seed: int = 0):
+                 garbage_every: int = 17, unplug_after_s: float | None = None, seed: int = 0,
+                 line_end: bytes = b"\n", reset_after_s: float | None = None):
         cmd = [sys.executable, __file__, str(plan), str(truth), str(boot_s), str(jitter_ms), str(garbage_every),
-               str(unplug_after_s or 0), str(seed)]
+               str(unplug_after_s or 0), str(seed), line_end.hex(), str(reset_after_s or 0)]
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True,
                                      env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
         self.port = self.proc.stdout.readline().strip()
@@ -78,7 +81,7 @@ class StandInArduino:
 
 
 def _serve(plan: Path, truth: Path, boot_s: float, jitter_ms: float, garbage_every: int, unplug_after_s: float,
-           seed: int) -> None:
+           seed: int, line_end: bytes = b"\n", reset_after_s: float = 0.0) -> None:
     master, slave = os.openpty()
     print(os.ttyname(slave), flush=True)
     os.close(slave)                       # from now on POLLHUP on the master means "port closed"
@@ -94,6 +97,7 @@ def _serve(plan: Path, truth: Path, boot_s: float, jitter_ms: float, garbage_eve
         clock_ns = opened_ns + int(boot_s * 1e9)          # millis() starts after the reset's boot
         record = {"opened_ns": opened_ns, "clock_start_ns": clock_ns, "tau_at_millis0": float(tau[0]),
                   "garbage_lines": 0, "samples": 0}
+        reset_ms = 0.0                                    # millis() at a reset mid-trial: it restarts from 0
         for i in range(len(tau) * 10):
             k = min(i, len(tau) - 1)                      # after the trial's end: the last sample again
             t_ms = (tau[k] - tau[0]) * 1000.0 if i < len(tau) else (tau[-1] - tau[0]) * 1000.0 + (i - k) * 66.7
@@ -108,7 +112,9 @@ def _serve(plan: Path, truth: Path, boot_s: float, jitter_ms: float, garbage_eve
                 _write_truth(truth, record)
                 os.close(master)                          # unplugged
                 return
-            lines = [f"{int(t_ms)},{','.join(str(int(c)) for c in counts[k])}\n".encode()]
+            if reset_after_s and not reset_ms and t_ms > reset_after_s * 1000:
+                reset_ms = t_ms                           # a brown-out: the board reboots, its clock restarts
+            lines = [f"{int(t_ms - reset_ms)},{','.join(str(int(c)) for c in counts[k])}".encode() + line_end]
             if garbage_every and i % garbage_every == garbage_every - 1:
                 lines.insert(0, GARBAGE[(i // garbage_every) % len(GARBAGE)])
                 record["garbage_lines"] += 1
@@ -124,4 +130,5 @@ def _write_truth(truth: Path, record: dict) -> None:
 
 if __name__ == "__main__":
     a = sys.argv[1:]
-    _serve(Path(a[0]), Path(a[1]), float(a[2]), float(a[3]), int(a[4]), float(a[5]), int(a[6]))
+    _serve(Path(a[0]), Path(a[1]), float(a[2]), float(a[3]), int(a[4]), float(a[5]), int(a[6]), bytes.fromhex(a[7]),
+           float(a[8]))

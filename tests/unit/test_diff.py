@@ -5,6 +5,9 @@ experiment: tests/integration/test_dvc_workflow.py)."""
 from __future__ import annotations
 
 import copy
+import sys
+
+import pytest
 
 from tactilepipe.pipeline import diff
 
@@ -84,3 +87,135 @@ def test_a_scene_without_draws_reports_any_change_and_a_missing_scene_says_so():
     assert d.verdict == "1 beyond noise: drift_30min_n.loaded +0.02 (changed)"
     assert [r.metric for r in diff.failures([d], {"loaded": 0.01})] == ["drift_30min_n.loaded"]
     assert diff.compare_scene("volume", None, new).verdict == "not in the old run"
+
+
+# --- non-finite scores are regressions, never noise ---------------------------------------------------
+
+def test_a_score_that_became_nan_or_null_fails_any_tolerance_and_is_not_noise():
+    old = _tool_run(full=BASE, single=BASE)
+    for bad in (float("nan"), None):
+        new = copy.deepcopy(old)
+        new["metrics"]["full"]["over_splits"]["mae"]["mean"] = bad
+        new["metrics"]["full"]["per_split"]["mae"] = [bad] * len(BASE)
+        new["metrics"]["single"]["per_split"]["mae"][3] = bad      # one draw: the interval leaves it out
+        d = diff.compare_scene("tool_normal", old, new)
+        full, single = _row(d, "full", "mae"), _row(d, "single", "mae")
+        assert (full.verdict, full.nonfinite) == ("non-finite", True), bad
+        assert (single.verdict, single.nonfinite) == ("non-finite", True), bad
+        assert d.verdict.startswith("2 beyond noise: full mae non-finite"), d.verdict
+        assert {(r.model, r.metric) for r in diff.failures([d], {"mae": 1e9})} == {("full", "mae"), ("single", "mae")}
+
+
+def test_a_single_value_that_became_null_or_nan_fails_its_tolerance():
+    old = {"metrics": {"drift_30min_n": {"loaded": 0.50, "unloaded": 0.1}}, "provenance": {}}
+    new = copy.deepcopy(old)
+    new["metrics"]["drift_30min_n"] = {"loaded": None, "unloaded": float("nan")}
+    d = diff.compare_scene("drift", old, new)
+    assert {r.metric for r in diff.failures([d], {"loaded": 1e9, "unloaded": 1e9})} == \
+        {"drift_30min_n.loaded", "drift_30min_n.unloaded"}
+
+
+# --- pairing over the draws two runs share ------------------------------------------------------------
+
+def _repeats(run: dict, k: int) -> dict:
+    """``run`` as a build with ``k`` repeats of its split would give it: the first k draws."""
+    from tactilepipe.core.intervals import interval
+    run = copy.deepcopy(run)
+    m = run["metrics"]
+    m["splits"] = ["trial"] + [f"trial_r{i}" for i in range(1, k)]
+    m["repeats"] = k
+    for name, model in list(m.items()):
+        if isinstance(model, dict) and "per_split" in model:
+            model["per_split"] = {s: v[:k] for s, v in model["per_split"].items()}
+            model["over_splits"] = {s: interval(v, test_train_ratio=0.2) for s, v in model["per_split"].items()}
+    return run
+
+
+def test_a_6_repeat_and_an_8_repeat_build_are_paired_over_their_6_shared_draws():
+    eight = _tool_run(full=BASE, single=BASE)
+    eight["metrics"]["splits"] = ["trial"] + [f"trial_r{i}" for i in range(1, 8)]
+    six = _repeats(eight, 6)
+    # the same models on the shared draws: the extra two draws move the mean, not the pairing
+    d = diff.compare_scene("tool_normal", six, eight)
+    row = _row(d, "full", "mae")
+    assert (row.verdict, row.how) == ("noise", "paired over 6 shared draws"), (row.verdict, row.how)
+    assert row.low == row.high == 0.0
+    # worse by 0.08 on every draw: a paired signal, which the two intervals (overlapping) would miss
+    worse = copy.deepcopy(eight)
+    worse["metrics"]["full"] = _model([b + 0.08 + 0.01 * (i % 2) for i, b in enumerate(BASE)])
+    d = diff.compare_scene("tool_normal", six, worse)
+    row = _row(d, "full", "mae")
+    assert (row.verdict, row.how) == ("signal", "paired over 6 shared draws") and row.low > 0
+    o, n = six["metrics"]["full"]["over_splits"]["mae"], worse["metrics"]["full"]["over_splits"]["mae"]
+    assert n["low"] < o["high"], "the intervals overlap: only the pairing sees the change"
+    # the draws named alike, not by position: a build whose draws are other splits is not paired
+    other = copy.deepcopy(worse)
+    other["metrics"]["splits"] = [f"trial_r{i}" for i in range(8, 16)]
+    assert _row(diff.compare_scene("tool_normal", six, other), "full", "mae").how == "intervals"
+
+
+# --- through the command line -------------------------------------------------------------------------
+
+def _write_run(root, run: dict) -> None:
+    import json
+    scene = root / "results" / "tool_normal"
+    scene.mkdir(parents=True, exist_ok=True)
+    # json writes NaN as NaN, as the pipeline's metrics would
+    (scene / "metrics.json").write_text(json.dumps(run["metrics"]))
+    (scene / "provenance.json").write_text(json.dumps(run["provenance"]))
+
+
+@pytest.fixture(scope="module")
+def committed(tmp_path_factory):
+    """A git repository (with DVC) whose HEAD holds one tool run's metrics."""
+    import subprocess
+    root = tmp_path_factory.mktemp("diffrepo")
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-c", "commit.gpgsign=false"]
+    subprocess.run(["git", "init", "-q", str(root)], check=True)
+    subprocess.run([sys.executable, "-m", "dvc", "init", "-q"], cwd=root, check=True)
+    _write_run(root, _tool_run(full=BASE, single=BASE))
+    subprocess.run(git + ["add", "-A"], cwd=root, check=True)
+    subprocess.run(git + ["commit", "-q", "-m", "run"], cwd=root, check=True)
+    return root
+
+
+@pytest.mark.parametrize("bad", ["nan", "null"])
+def test_the_ci_gate_fails_a_run_whose_mae_became_nan_or_null(committed, bad, capsys):
+    from tactilepipe.cli.main import main
+    new = _tool_run(full=BASE, single=BASE)
+    new["metrics"]["full"]["over_splits"]["mae"]["mean"] = float("nan") if bad == "nan" else None
+    new["metrics"]["full"]["per_split"]["mae"] = [float("nan") if bad == "nan" else None] * len(BASE)
+    _write_run(committed, new)
+    status = main(["diff", "--repo", str(committed), "--scenes", "tool_normal", "--fail-on", "mae=0.05"])
+    out, err = capsys.readouterr()
+    assert status == 1, out + err
+    assert "within noise" not in out and "full mae non-finite" in out
+    assert "tool_normal: full mae is not a number in the new run" in err
+
+
+@pytest.mark.parametrize("tolerance", ["nan", "inf", "-0.1"])
+def test_a_tolerance_that_is_not_a_finite_number_is_refused(committed, tolerance, capsys):
+    from tactilepipe.cli.main import main
+    status = main(["diff", "--repo", str(committed), "--scenes", "tool_normal", "--fail-on", f"mae={tolerance}"])
+    assert status == 2
+    assert f"--fail-on 'mae={tolerance}': the tolerance must be a finite number >= 0" in capsys.readouterr().err
+
+
+def test_draws_whose_baselines_score_alike_are_paired_though_earlier_code_changed():
+    eight = _tool_run(full=BASE)
+    eight["metrics"]["splits"] = ["trial"] + [f"trial_r{i}" for i in range(1, 8)]
+    eight["metrics"]["test_pairs_per_split"] = [100 + i for i in range(8)]
+    eight["metrics"]["baselines"] = {"mean_predictor": _model([5.0 + 0.1 * i for i in range(8)])}
+    six = _repeats(eight, 6)
+    six["metrics"]["test_pairs_per_split"] = eight["metrics"]["test_pairs_per_split"][:6]
+    new = copy.deepcopy(eight)
+    new["provenance"]["stages"]["tool-split"]["code_sha256"] = "refactored"      # provenance cannot tell
+    new["metrics"]["full"] = _model([b + 0.08 + 0.01 * (i % 2) for i, b in enumerate(BASE)])
+    row = _row(diff.compare_scene("tool_normal", six, new), "full", "mae")
+    assert (row.verdict, row.how) == ("signal", "paired over 6 shared draws")
+    assert abs(row.change - 0.085) < 1e-9                  # the mean change over the shared draws
+    # a baseline scoring otherwise on a draw: that draw is another split, and is left out
+    new["metrics"]["baselines"]["mean_predictor"]["per_split"]["mae"][2] += 0.5
+    assert _row(diff.compare_scene("tool_normal", six, new), "full", "mae").how == "paired over 5 shared draws"
+    new["metrics"]["test_pairs_per_split"] = [7] * 8                              # other test sets
+    assert _row(diff.compare_scene("tool_normal", six, new), "full", "mae").how == "intervals"

@@ -30,13 +30,14 @@ def test_the_committed_schema_is_what_the_models_give():
 def test_a_stale_schema_is_refused_with_what_differs(tmp_path):
     stale = tmp_path / "params.schema.json"
     text = Path(str(PARAMS_SCHEMA)).read_text()
-    line = '"lifts_per_volume": {"minimum": 1, "type": "integer"}'
+    line = '"lifts_per_volume": {"description": "at most 10000 per volume", "maximum": 10000, "minimum": 1, ' \
+           '"type": "integer"}'
     assert line in text
-    stale.write_text(text.replace(line, line.replace("1", "2"), 1))
+    stale.write_text(text.replace(line, line.replace('"minimum": 1', '"minimum": 2'), 1))
     proc = run([str(BIN / "python"), SCRIPT, "--check", "--out", str(stale)], REPO, check=False)
     assert proc.returncode == 1
-    assert '-        "lifts_per_volume": {"minimum": 2, "type": "integer"}' in proc.stdout
-    assert '+        "lifts_per_volume": {"minimum": 1, "type": "integer"}' in proc.stdout
+    assert '-        ' + line.replace('"minimum": 1', '"minimum": 2') in proc.stdout
+    assert '+        ' + line in proc.stdout
     assert "run `make schema`" in proc.stdout
     assert stale.read_text() != text                  # --check never writes
 
@@ -122,3 +123,55 @@ def test_the_depths_params_yaml_accepts_are_those_the_network_builds():
     from tactilepipe.core.parameters.tool import Depth
     from tactilepipe.tool.model.variants import DEPTHS
     assert sorted(get_args(Depth)) == sorted(DEPTHS)
+
+
+# --- finite and bounded ----------------------------------------------------------------------------
+
+def _integers(node, path=""):
+    """(path, schema) of every integer the schema declares (enumerations aside)."""
+    if isinstance(node, dict):
+        if node.get("type") == "integer" and "enum" not in node:
+            yield path, node
+        for key, value in node.items():
+            yield from _integers(value, f"{path}/{key}")
+    elif isinstance(node, list):
+        for i, value in enumerate(node):
+            yield from _integers(value, f"{path}/{i}")
+
+
+def test_every_count_and_size_has_an_upper_bound():
+    integers = list(_integers(params_schema()))
+    assert len(integers) > 40
+    assert [path for path, schema in integers if "maximum" not in schema] == []
+
+
+def test_a_nan_or_infinite_number_is_refused_wherever_it_stands(tmp_path):
+    with pytest.raises(ConfigError, match=r"at 'tool_train.lr': nan is not a finite number"):
+        load_params(overrides={"tool_train": {"lr": float("nan")}})
+    with pytest.raises(ConfigError, match=r"at 'mlp.grid.learning_rate.1': inf is not a finite number"):
+        load_params(overrides={"mlp": {"grid": {"learning_rate": [1e-3, float("inf")]}}})
+    with pytest.raises(ConfigError, match=r"at 'scales.smoke.drift.tolerance_n': -inf is not a finite number"):
+        load_params(overrides={"scales": {"smoke": {"drift": {"tolerance_n": float("-inf")}}}})
+
+
+@pytest.mark.parametrize("edit, needle", [
+    (("  lr: ", "  lr: .nan  #"), "invalid parameter at 'tool_train.lr': nan is not a finite number"),
+    (("  repeats: ", "  repeats: 1000000000  #"),
+     "invalid parameter at 'tool_split.repeats': 1000000000 is greater than the maximum of 100"),
+], ids=["nan_learning_rate", "a_billion_repeats"])
+def test_the_command_line_refuses_a_nan_rate_and_a_billion_repeats_in_one_line(tmp_path, capsys, edit, needle):
+    """The YAML a user writes: before, the NaN rate reached torch's optimizer (ValueError) and the
+    billion repeats passed the schema and the workflow's planning ran out of memory."""
+    from tactilepipe.cli.main import main
+    text = (REPO / "params.yaml").read_text()
+    old, new = edit
+    start = text.index(old, text.index("\ntool_train:" if "lr" in old else "\ntool_split:"))
+    params = tmp_path / "params.yaml"
+    params.write_text(text[:start] + new + text[start + len(old):])
+    status = main(["tool-train", "--params", str(params), "--scene", "tool_normal", "--variant", "full",
+                   "--data-dir", str(tmp_path / "data"), "--split", str(tmp_path / "s.json"),
+                   "--out-dir", str(tmp_path / "out"), "--depth", "18", "--image-size", "16"])
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1, err
+    assert err.startswith("tactilepipe tool-train: error: ") and needle in err, err
+    assert not (tmp_path / "out").exists()

@@ -61,3 +61,55 @@ def test_frames_standing_the_other_way_than_the_training_frames_are_refused(tria
     summary = stream_predictions(_checkpoint(tmp_path / "p.pt", frame_orientation="portrait"), trial, "native",
                                  load_params(), limit=2, out=io.StringIO())
     assert summary["pairs"] == 2
+
+
+# --- non-finite weights and estimates: refused where they enter and leave --------------------------------
+
+def _predict_cli(ckpt, trial, capsys) -> tuple[int, str]:
+    """`tactilepipe predict`'s exit status and stderr (its estimates go to the stdout it was
+    imported with, which pytest does not capture: stream_predictions shows them)."""
+    from tactilepipe.cli.main import main
+    status = main(["predict", "--checkpoint", str(ckpt), "--trial", str(trial), "--limit", "2"])
+    return status, capsys.readouterr().err
+
+
+def test_a_checkpoint_with_nan_weights_is_refused_naming_the_file_and_the_tensor(trial, tmp_path, capsys):
+    ckpt = _checkpoint(tmp_path / "nan.pt")
+    raw = torch.load(ckpt, weights_only=False)
+    name = next(k for k, v in raw["model"].items() if v.is_floating_point() and v.numel() > 3)
+    raw["model"][name].view(-1)[:3] = float("nan")
+    torch.save(raw, ckpt)
+    status, err = _predict_cli(ckpt, trial, capsys)
+    assert status == 2 and err.count("\n") == 1, err
+    assert f"nan.pt: weights: tensor '{name}' holds 3 non-finite value(s) (NaN or inf)" in err, err
+    out = io.StringIO()
+    with pytest.raises(InputError):
+        stream_predictions(ckpt, trial, "native", load_params(), limit=2, out=out)
+    assert out.getvalue() == ""                          # refused before any estimate
+
+
+def test_an_estimate_that_is_not_finite_is_never_printed_as_a_force(trial, tmp_path, capsys):
+    # finite weights, but a label scale that overflows: the estimate is inf
+    ckpt = _checkpoint(tmp_path / "m.pt", label_stats={"min": 0.0, "max": float("inf"), "mean": 0.0, "std": 1.0})
+    status, err = _predict_cli(ckpt, trial, capsys)
+    assert status == 2 and err.count("\n") == 1, err
+    assert "frame pair 0 (left frame 0, right frame 0): the model's estimate is" in err and "not a force" in err, err
+    out = io.StringIO()
+    with pytest.raises(InputError, match="not a force"):
+        stream_predictions(ckpt, trial, "native", load_params(), limit=2, out=out)
+    out = out.getvalue()
+    assert out.startswith("pair,left_frame,right_frame,t_s,prediction_n,latency_ms\n"), out
+    assert "inf" not in out.lower() and "nan" not in out.lower(), out
+
+
+def test_weights_that_diverged_are_never_written(tmp_path):
+    from tactilepipe.core.errors import TactilepipeError
+    from tactilepipe.tool.model.checkpoint import save_checkpoint
+    state = build_model("full", 18, 16, "sigmoid", 8).state_dict()
+    name = next(k for k, v in state.items() if v.is_floating_point())
+    state[name].view(-1)[0] = float("inf")
+    path = tmp_path / "last.pt"
+    with pytest.raises(TactilepipeError, match=rf"last.pt: not written: the trained weights diverged, tensor "
+                                               rf"'{name}' holds 1 non-finite"):
+        save_checkpoint({"format": CHECKPOINT_FORMAT, "model": state, "meta": {"epoch": 3}}, path)
+    assert not path.exists() and list(tmp_path.iterdir()) == []

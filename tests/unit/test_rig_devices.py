@@ -98,3 +98,31 @@ def test_the_command_line_offers_the_modes_and_baud_rate_the_rig_code_has():
     from tactilepipe.rig.arduino import BAUD
     from tactilepipe.rig.cameras import MODES
     assert cli_rig.MODE_NAMES == tuple(MODES) and cli_rig.DEFAULT_BAUD == BAUD
+
+
+def test_a_device_thread_that_does_not_stop_is_reported_and_left_behind_in_bounded_time():
+    import threading
+    import time
+    from tactilepipe.rig.reader import DeviceReader
+
+    class Stuck(DeviceReader):            # a driver call that never returns (until the test ends)
+        stats = {}
+        closed = False
+
+        def __init__(self):
+            self.release = threading.Event()
+            self._init_thread("stuck")
+
+        def _run(self):
+            self.release.wait(30)
+
+        def _close(self):
+            self.closed = True
+
+    device = Stuck().start()
+    t0 = time.monotonic()
+    device.stop(timeout_s=0.3)
+    assert time.monotonic() - t0 < 1.0
+    assert device.stuck and device.running and not device.closed      # not released under the running call
+    device.release.set()
+    assert device._thread.join(5) is None and not device.running

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -229,3 +230,67 @@ def test_a_camera_on_another_clock_is_refused_at_ingest(session, tmp_path, stamp
                                              (line.split(",") for line in lines[1:])]) + "\n")
     with pytest.raises(InputError, match=problem):
         ingest_trial(read_native_trial(trial), tmp_path / "s.parquet", image_size=32, ingest=INGEST)
+
+
+# --- the true cause, at the first stage that can see it (through `tactilepipe tool-ingest`) ----------
+
+def _cli_ingest(trial: Path, out: Path, capsys) -> tuple[int, str, str]:
+    from tactilepipe.cli.main import main
+    status = main(["tool-ingest", str(trial), "--format", "native", "--out", str(out)])
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+def _rewrite_clock(trial: Path, clock, started_ms: int = 0) -> None:
+    """force.log with each Arduino time t (ms) replaced by clock(t); ``started_ms``: the board's
+    clock read that much when the port opened (the header moves back by it, as if its clock had
+    started then)."""
+    lines = (trial / "force.log").read_text().splitlines()
+    header = f"# start_host_ns={int(lines[0].split('=')[1]) - started_ms * 1_000_000}"
+    rows = [ln.split(",", 1) for ln in lines[1:]]
+    (trial / "force.log").write_text("\n".join([header] + [f"{clock(int(t))},{rest}" for t, rest in rows]) + "\n")
+
+
+def test_a_micros_clock_that_wraps_mid_trial_is_unwrapped_and_named(session, tmp_path, capsys):
+    status, out, err = _cli_ingest(session / "t00", tmp_path / "clean.parquet", capsys)
+    assert status == 0, err
+    clean = json.loads(out)["clock"]
+    # a firmware printing micros()/1000, whose counter passes 2**32 us 3.5 s into the trial
+    base_us = 2**32 - 4_500_000
+    trial = _broken_copy(session, tmp_path, lambda t: _rewrite_clock(
+        t, lambda ms: ((ms * 1000 + base_us) % 2**32) // 1000, started_ms=base_us // 1000))
+    status, out, err = _cli_ingest(trial, tmp_path / "wrapped.parquet", capsys)
+    assert status == 0, err
+    clock = json.loads(out)["clock"]
+    assert len(clock["arduino_wraps"]) == 1 and clock["arduino_wraps"][0].startswith("micros()/1000 at line ")
+    # the same alignment as the clean log (its times are the clean ones plus a constant, to 1 ms)
+    assert abs(clock["refined_shift_s"] - clean["refined_shift_s"]) < 0.002, (clock, clean)
+
+
+def test_a_wrap_with_samples_missing_after_it_is_named_as_such_not_as_a_reset(session, tmp_path, capsys):
+    base_us = 2**32 - 4_500_000
+
+    def clock(ms):                        # 3 s of samples lost where the counter wraps
+        us = ms * 1000 + base_us
+        return ((us + (3_000_000 if us >= 2**32 else 0)) % 2**32) // 1000
+    trial = _broken_copy(session, tmp_path, lambda t: _rewrite_clock(t, clock, started_ms=base_us // 1000))
+    status, _, err = _cli_ingest(trial, tmp_path / "o.parquet", capsys)
+    assert status == 2 and "force.log" in err, err
+    assert re.search(r"Arduino clock wraps from 42949\d\d to \d+ ms \(its micros\(\)/1000 counter passing "
+                     r"4294967.296 ms\) with 30\d\d ms between the samples", err), err
+    assert "samples are missing there, not unwrapped" in err and "reset" not in err
+
+
+@pytest.mark.parametrize("cal, needle", [
+    (lambda text: text.replace("<FTSensor", '<FTSensor xmlns="http://www.ati-ia.com/calibration"', 1),
+     "nano17.cal: the XML declares the namespace 'http://www.ati-ia.com/calibration' (xmlns): ATI's calibration "
+     "files have none"),
+    (lambda text: text.replace('values="0 0 20', 'values="0 0 1e300', 1),
+     "nano17.cal [UserAxis Fz]: value 3 of the row, 1e+300, is out of range: alone it maps the ADC's 5 V to 5e+300 N"),
+], ids=["namespaced_xml", "one_cell_1e300"])
+def test_a_calibration_file_names_its_true_fault(session, tmp_path, capsys, cal, needle):
+    trial = _broken_copy(session, tmp_path, lambda t: (t.parent / "nano17.cal").write_text(
+        cal((t.parent / "nano17.cal").read_text())))
+    status, _, err = _cli_ingest(trial, tmp_path / "o.parquet", capsys)
+    assert status == 2 and needle in err, err
+    assert "missing" not in err and "singular" not in err

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 
 from tactilepipe.cli.registry import arg, command
@@ -18,6 +19,10 @@ def _tolerances(items: list[str]) -> dict[str, float]:
             out[name.strip()] = float(value)
         except ValueError:
             raise ArgumentError(f"--fail-on {item!r}: expected METRIC=TOLERANCE, e.g. mae=0.05") from None
+        # every comparison with NaN is false, so a NaN tolerance would pass any change; an infinite
+        # one passes every change, a negative one fails an unchanged run
+        if not math.isfinite(out[name.strip()]) or out[name.strip()] < 0:
+            raise ArgumentError(f"--fail-on {item!r}: the tolerance must be a finite number >= 0, e.g. mae=0.05")
     return out
 
 
@@ -29,7 +34,8 @@ def _tolerances(items: list[str]) -> dict[str, float]:
                arg("--scenes", nargs="+", help="only these scenes (default: every scene)"),
                arg("--fail-on", nargs="+", default=[], metavar="METRIC=TOL",
                    help="exit 1 when a metric (mae, rmse, r2, or a value's last name) of any model got worse by "
-                        "more than TOL, e.g. --fail-on mae=0.05 r2=0.01"),
+                        "more than TOL (finite, >= 0), or is NaN or null in the new run, e.g. --fail-on mae=0.05 "
+                        "r2=0.01"),
                arg("--json", action="store_true", help="JSON instead of Markdown"),
                arg("--all", action="store_true", help="also list what did not change"),
                arg("--out", help="write the report here instead of standard output"),
@@ -60,9 +66,18 @@ def cmd_diff(args, p) -> int:
         sys.stdout.write(text)
     failed = diff.failures(diffs, tolerances)
     for r in failed:
-        print(f"tactilepipe diff: {r.scene}: {r.label} worse by {r.worse_by:.4g} "
-              f"(tolerance {tolerances[r.metric.rsplit('.', 1)[-1]]:g}; {r.verdict})", file=sys.stderr)
+        tol = tolerances[r.metric.rsplit('.', 1)[-1]]
+        if r.nonfinite:
+            print(f"tactilepipe diff: {r.scene}: {r.label} is not a number in the new run ({_text(r.new)}, or a "
+                  f"draw of it NaN or null): a regression at any tolerance (tolerance {tol:g})", file=sys.stderr)
+        else:
+            print(f"tactilepipe diff: {r.scene}: {r.label} worse by {r.worse_by:.4g} (tolerance {tol:g}; {r.verdict})",
+                  file=sys.stderr)
     return 1 if failed else 0
+
+
+def _text(value) -> str:
+    return "null" if value is None else str(value)
 
 
 @command("verify-data", "re-hash every file DVC tracks (dvc.lock, .dvc files) and name those whose content "

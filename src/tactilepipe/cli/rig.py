@@ -51,7 +51,8 @@ def cmd_record(args, p) -> int | None:
         return None
     from tactilepipe.core.errors import ArgumentError
     from tactilepipe.rig.cameras import resolve_source
-    from tactilepipe.rig.record import Devices, TrialIncomplete, install_calibration, next_trial_name, record_trial
+    from tactilepipe.rig.record import (Devices, TrialIncomplete, check_plain_name, check_session_path,
+                                        install_calibration, next_trial_name, record_trial)
     from tactilepipe.tool.formats.native_layout import TrialMeta, check_tool_name
     missing = [f"--{n.replace('_', '-')}" for n in ("session", "left", "right", "port", "tool", "kind", "seconds")
                if getattr(args, n) is None]
@@ -61,6 +62,9 @@ def cmd_record(args, p) -> int | None:
         raise ArgumentError("--trial names one trial; leave it out to record a series (--trials N)")
     check_tool_name(args.tool, "--tool")
     session = Path(args.session)
+    check_session_path(session)
+    if args.trial:
+        check_plain_name(args.trial, "--trial")
     session.mkdir(parents=True, exist_ok=True)
     install_calibration(session, Path(args.calibration) if args.calibration else None)
     devices = Devices(resolve_source(args.left), resolve_source(args.right), args.port, args.mode, args.baud)
@@ -107,4 +111,4 @@ def cmd_live(args, p) -> int | None:
     summary = run_live(Path(args.checkpoint), (resolve_source(args.left), resolve_source(args.right)), args.mode, p,
                        args.seconds, Path(args.log), Path(args.reference) if args.reference else None,
                        args.label_range)
-    return 0 if summary.pairs else 1
+    return 0 if summary.pairs and not summary.not_a_force else 1

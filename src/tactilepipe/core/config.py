@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import copy
 import json
+import math
 import re
 from functools import cache
 from importlib.resources import files
@@ -119,8 +120,25 @@ def _numbers_yaml11_missed(raw: dict) -> dict:
     return raw
 
 
+def _nonfinite(node, path: str = ""):
+    """(dotted path, value) of the first NaN or infinite number in ``node`` (None: there is none)."""
+    if isinstance(node, float) and not math.isfinite(node):
+        return path or "(top level)", node
+    items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+    for key, value in items:
+        where = _nonfinite(value, f"{path}.{key}" if path else str(key))
+        if where:
+            return where
+    return None
+
+
 def validate(raw: dict, source: str = "params.yaml") -> None:
-    """Raise ConfigError naming the first offending key (wrong key, type or range)."""
+    """Raise ConfigError naming the first offending key (wrong key, type or range, or a number
+    that is NaN or infinite: YAML's .nan and .inf pass every JSON-schema bound, as each comparison
+    with NaN is false, so they are refused here, for every parameter)."""
+    bad = _nonfinite(raw)
+    if bad:
+        raise ConfigError(f"{source}: invalid parameter at '{bad[0]}': {bad[1]} is not a finite number")
     errors = sorted(_validator().iter_errors(raw), key=lambda e: (len(e.absolute_path), str(e.absolute_path)))
     if errors:
         raise ConfigError(_format_error(errors[0], source))

@@ -8,8 +8,12 @@ A run is a git revision, a DVC experiment or the workspace; its files are read t
   When both runs drew the same splits (the same recordings, and the same code and parameters of
   every stage before the models: ``provenance.json``), the change is judged **paired**: the
   interval of the per-draw differences (the same corrected resampled t as the reports) either
-  excludes zero (signal) or not (noise). Otherwise the two runs' own intervals are compared:
-  disjoint is signal, overlapping noise.
+  excludes zero (signal) or not (noise). A run with more repeats than the other is paired over the
+  draws both have (a tool scene's draws are named by their split, and repeat k draws from its own
+  seed whatever the count); otherwise the two runs' own intervals are compared: disjoint is signal,
+  overlapping noise.
+- **non-finite**: a score that is NaN, infinite or null in the new run (its mean or any one draw)
+  is never noise: it is its own verdict, and a metric held to a tolerance fails on it.
 - **single values** (the drift fits, the volume table, ...): the pipeline makes them
   deterministically, so any change is reported as changed, with no noise estimate.
 
@@ -43,13 +47,19 @@ class Row:
     metric: str
     old: float | str | bool | None
     new: float | str | bool | None
-    verdict: str                       # same | noise | signal | changed | added | removed
+    verdict: str                       # same | noise | signal | non-finite | changed | added | removed
     how: str = ""                      # paired over K draws | intervals | single value
     low: float = math.nan              # interval of the change, where judged
     high: float = math.nan
+    nonfinite: bool = False            # the new value (or one of its draws) is NaN, infinite or null
+    paired_mean: float = math.nan      # mean per-draw change, where paired over a subset of the draws
 
     @property
     def change(self) -> float:
+        """new - old; paired over the draws two runs share (not all of either's), the mean change
+        over those draws, since the means over all draws differ by the extra draws' luck."""
+        if not math.isnan(self.paired_mean):
+            return self.paired_mean
         numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (self.old, self.new))
         return (self.new - self.old) if numbers else math.nan
 
@@ -92,8 +102,9 @@ class SceneDiff:
         # from the same models) are counted beside them. A scene without draws by its values.
         judged = [r for r in moved if (r.how != "single value") == self.scored]
         others = len(moved) - len(judged)
+        # a value that is no longer a number first: it is worse than any size of change
         signals = sorted((r for r in judged if r.verdict != "noise"),
-                         key=lambda r: -(r.worse_by if not math.isnan(r.worse_by) else -1))
+                         key=lambda r: -math.inf if r.nonfinite else -(r.worse_by if not math.isnan(r.worse_by) else -1))
         tail = f"; {others} other values changed" if others else ""
         if not judged:
             return f"scores unchanged{tail}"
@@ -139,22 +150,82 @@ def draws_identity(provenance: dict | None) -> str | None:
 
 # ----------------------------------------------------------------------------- what a scene scores
 
+def _number(x) -> float:
+    """A score as a float: null (json's None) is NaN, so it can never pass as a number."""
+    return math.nan if x is None else float(x)
+
+
 def scored_series(scene: str, metrics: dict) -> dict[tuple[str, str], dict]:
-    """``{(model, metric): {"value", "draws", "low", "high"}}`` of the scores over repeated draws."""
+    """``{(model, metric): {"value", "draws", "names", "low", "high"}}`` of the scores over repeated
+    draws; ``names`` names each draw (a tool scene's split), None where draws are only counted."""
     series = {}
     if scene in TOOL_SCENES:
         models = {k: v for k, v in metrics.items() if isinstance(v, dict) and "per_split" in v}
         models.update({f"baseline {k}": v for k, v in metrics.get("baselines", {}).items() if "per_split" in v})
+        splits = metrics.get("splits")
         for model, m in models.items():
             for score in TOOL_SCORES:
                 ov = m["over_splits"][score]
-                series[(model, score)] = {"value": ov["mean"], "draws": m["per_split"][score],
-                                          "low": ov["low"], "high": ov["high"]}
+                draws = [_number(x) for x in m["per_split"][score]]
+                series[(model, score)] = {"value": ov["mean"], "draws": draws,
+                                          "names": list(splits) if splits and len(splits) == len(draws) else None,
+                                          "low": _number(ov["low"]), "high": _number(ov["high"])}
     elif scene == "volume":
         for model, draws in metrics.get("r2_folds", {}).items():
             low, high = metrics.get("r2_ci95", {}).get(model, (math.nan, math.nan))
-            series[(model, "r2")] = {"value": metrics["r2"][model]["mean"], "draws": draws, "low": low, "high": high}
+            series[(model, "r2")] = {"value": metrics["r2"][model]["mean"], "draws": [_number(x) for x in draws],
+                                     "names": None, "low": _number(low), "high": _number(high)}
     return series
+
+
+def _nonfinite(value) -> bool:
+    """None, NaN or an infinity: a value that is no longer a number (text and flags are not numbers
+    to begin with)."""
+    return value is None or (isinstance(value, float) and not math.isfinite(value))
+
+
+def draws_shown_same(scene: str, old: dict, new: dict) -> set[str]:
+    """The draws (splits) of a tool scene that two runs demonstrably share, whatever their
+    provenance says: the baselines are fitted deterministically on each draw's training part and
+    scored on its test part, so a draw of the same name with the same test size on which every
+    baseline scores exactly the same in both runs is the same split of the same data. This pairs
+    runs whose earlier stages' code changed without changing the data (a refactor)."""
+    if scene not in TOOL_SCENES:
+        return set()
+    names = []
+    for m in (old, new):
+        splits, sizes = m.get("splits") or [], m.get("test_pairs_per_split") or []
+        names.append({n: k for k, n in enumerate(splits)} if len(sizes) == len(splits) else {})
+    a, b = old.get("baselines") or {}, new.get("baselines") or {}
+    if not a or set(a) != set(b):
+        return set()
+    same = set()
+    for name in set(names[0]) & set(names[1]):
+        i, j = names[0][name], names[1][name]
+        if old["test_pairs_per_split"][i] != new["test_pairs_per_split"][j]:
+            continue
+        try:
+            if all(_same(_number(a[base]["per_split"][score][i]), _number(b[base]["per_split"][score][j]))
+                   and math.isfinite(_number(a[base]["per_split"][score][i]))
+                   for base in a for score in TOOL_SCORES):
+                same.add(name)
+        except (KeyError, IndexError, TypeError, ValueError):
+            continue
+    return same
+
+
+def shared_draws(sa: dict, sb: dict, only: set[str] | None = None) -> tuple[list[float], list[float]] | None:
+    """The scores of the draws both series have, in the same order: by name when both name their
+    draws (a 6-repeat run against an 8-repeat one: the 6 shared splits; ``only``: just these
+    names), by position when neither does and the counts agree; None when they cannot be paired."""
+    if sa["names"] is not None and sb["names"] is not None:
+        at = {name: i for i, name in enumerate(sb["names"])}
+        common = [(i, at[name]) for i, name in enumerate(sa["names"])
+                  if name in at and (only is None or name in only)]
+        return [sa["draws"][i] for i, _ in common], [sb["draws"][j] for _, j in common]
+    if len(sa["draws"]) == len(sb["draws"]):
+        return sa["draws"], sb["draws"]
+    return None
 
 
 def single_values(scene: str, metrics: dict) -> dict[str, float | str | bool]:
@@ -165,9 +236,9 @@ def single_values(scene: str, metrics: dict) -> dict[str, float | str | bool]:
     out = {}
 
     def walk(node, path):
-        if node is None:
-            return
-        if isinstance(node, (bool, str)):
+        if node is None:                  # a null is kept: a value that became null has changed
+            out[path] = None
+        elif isinstance(node, (bool, str)):
             out[path] = node
         elif isinstance(node, (int, float)):
             out[path] = float(node)
@@ -202,6 +273,8 @@ def compare_scene(scene: str, old: dict | None, new: dict | None) -> SceneDiff:
         return SceneDiff(scene, note=f"not in {which}")
     out = SceneDiff(scene)
     paired = draws_identity(old["provenance"]) == draws_identity(new["provenance"]) is not None
+    # otherwise the draws whose baselines show them to be the same splits (a tool scene)
+    shown = None if paired else draws_shown_same(scene, old["metrics"], new["metrics"])
     ratio = _test_train_ratio(scene, new)
     a, b = scored_series(scene, old["metrics"]), scored_series(scene, new["metrics"])
     for key in sorted(set(a) | set(b)):
@@ -209,16 +282,22 @@ def compare_scene(scene: str, old: dict | None, new: dict | None) -> SceneDiff:
         if key not in b or key not in a:
             s = a.get(key) or b.get(key)
             out.rows.append(Row(scene, model, metric, s["value"] if key in a else None,
-                                s["value"] if key in b else None, "removed" if key not in b else "added"))
+                                s["value"] if key in b else None, "removed" if key not in b else "added",
+                                nonfinite=key in b and (_nonfinite(s["value"]) or any(map(_nonfinite, s["draws"])))))
             continue
         sa, sb = a[key], b[key]
+        bad = _nonfinite(sb["value"]) or any(map(_nonfinite, sb["draws"]))
+        pairs = shared_draws(sa, sb) if paired else (shared_draws(sa, sb, shown) if shown else None)
         if all(_same(x, y) for x, y in zip(sa["draws"], sb["draws"])) and len(sa["draws"]) == len(sb["draws"]):
-            out.rows.append(Row(scene, model, metric, sa["value"], sb["value"], "same"))
-        elif paired and len(sa["draws"]) == len(sb["draws"]) >= 2:
-            d = paired_difference(sb["draws"], sa["draws"], test_train_ratio=ratio)
+            out.rows.append(Row(scene, model, metric, sa["value"], sb["value"], "same", nonfinite=bad))
+        elif bad:                          # never noise, whatever the interval of the finite draws says
+            out.rows.append(Row(scene, model, metric, sa["value"], sb["value"], "non-finite", nonfinite=True))
+        elif pairs is not None and len(pairs[0]) >= 2:
+            d = paired_difference(pairs[1], pairs[0], test_train_ratio=ratio)
+            shared = "" if len(pairs[0]) == len(sa["draws"]) == len(sb["draws"]) else " shared"
             out.rows.append(Row(scene, model, metric, sa["value"], sb["value"],
-                                "signal" if d["excludes_zero"] else "noise", f"paired over {d['n']} draws",
-                                d["low"], d["high"]))
+                                "signal" if d["excludes_zero"] else "noise", f"paired over {d['n']}{shared} draws",
+                                d["low"], d["high"], paired_mean=d["mean"] if shared else math.nan))
         else:
             apart = sb["low"] > sa["high"] or sb["high"] < sa["low"]
             out.rows.append(Row(scene, model, metric, sa["value"], sb["value"], "signal" if apart else "noise",
@@ -229,7 +308,8 @@ def compare_scene(scene: str, old: dict | None, new: dict | None) -> SceneDiff:
             verdict = "same" if _same(va[path], vb[path]) else "changed"
         else:
             verdict = "removed" if path not in vb else "added"
-        out.rows.append(Row(scene, "", path, va.get(path), vb.get(path), verdict, "single value"))
+        out.rows.append(Row(scene, "", path, va.get(path), vb.get(path), verdict, "single value",
+                            nonfinite=path in vb and _nonfinite(vb[path])))
     return out
 
 
@@ -238,13 +318,18 @@ def diff_runs(old: dict, new: dict, scenes=SCENES) -> list[SceneDiff]:
 
 
 def failures(diffs: list[SceneDiff], tolerances: dict[str, float]) -> list[Row]:
-    """Rows whose metric (its last name: mae, r2, ...) got worse by more than its tolerance. A
-    scene scored over draws is held to its scores (their means), not to single draws' values."""
+    """Rows whose metric (its last name: mae, r2, ...) got worse by more than its tolerance, or is
+    no longer a number in the new run (NaN, infinite or null, in its mean or any draw: worse than
+    any tolerance, and never noise). A scene scored over draws is held to its scores (their
+    means), not to single draws' values."""
     out = []
     for d in diffs:
-        out += [r for r in d.rows if (r.how != "single value") == d.scored
-                and r.metric.rsplit(".", 1)[-1] in tolerances and not math.isnan(r.worse_by)
-                and r.worse_by > tolerances[r.metric.rsplit(".", 1)[-1]]]
+        for r in d.rows:
+            name = r.metric.rsplit(".", 1)[-1]
+            if (r.how != "single value") != d.scored or name not in tolerances:
+                continue
+            if r.nonfinite or (not math.isnan(r.worse_by) and r.worse_by > tolerances[name]):
+                out.append(r)
     return out
 
 
@@ -283,4 +368,4 @@ def as_json(diffs: list[SceneDiff]) -> dict:
                       "rows": [{"model": r.model, "metric": r.metric, "old": r.old, "new": r.new,
                                 "change": None if math.isnan(r.change) else r.change,
                                 "worse_by": None if math.isnan(r.worse_by) else r.worse_by, "verdict": r.verdict,
-                                "how": r.how} for r in d.rows if r.verdict != "same"]} for d in diffs}
+                                "how": r.how, "nonfinite": r.nonfinite} for r in d.rows if r.verdict != "same" or r.nonfinite]} for d in diffs}

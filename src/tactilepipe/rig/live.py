@@ -51,6 +51,7 @@ class LiveSummary:
     median_compute_ms: float = float("nan")
     sustained_pairs_per_s: float = 0.0
     stopped: str = ""
+    not_a_force: bool = False                          # stopped on an estimate that is NaN or infinite
 
 
 class _PairSource:
@@ -126,6 +127,10 @@ def run_live(checkpoint: Path, sources: tuple[str, str], mode: str, p: dict, sec
                     i, left, j, right, host_ns = got
                     t0 = time.perf_counter()
                     value = est.estimate(left, right)
+                    if not np.isfinite(value):     # never shown or logged as a force
+                        summary.stopped = f"the model's estimate for frames {i}/{j} is {value}, not a force"
+                        summary.not_a_force = True
+                        break
                     compute = (time.perf_counter() - t0) * 1000
                     latency = (time.time_ns() - host_ns) / 1e6
                     latencies.append(latency)

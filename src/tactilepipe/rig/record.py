@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 import queue
+import re
 import shutil
 import sys
 import threading
@@ -31,12 +32,15 @@ from tactilepipe.core.atomic import write_text
 from tactilepipe.core.errors import ArgumentError, InputError, TactilepipeError
 from tactilepipe.rig.arduino import BAUD, ArduinoReader
 from tactilepipe.rig.cameras import MODES, Camera
+from tactilepipe.rig.reader import STOP_TIMEOUT_S
 from tactilepipe.tool.formats.native_layout import (FRAME_NAME, SENSORS, TrialMeta, check_tool_name,
                                                     read_calibration)
 
 STAGING, INCOMPLETE = ".recording", "incomplete"
 PROGRESS_EVERY_S = 0.5
 FIRST_SAMPLE_TIMEOUT_S = 3.0          # an Arduino boots in well under a second after the port's reset
+# a trial's or session's folder name: one plain name, never a path (no separator, no "..")
+PLAIN_NAME = re.compile(r"^[A-Za-z0-9_.-]+$")
 
 
 class TrialIncomplete(TactilepipeError):
@@ -104,6 +108,22 @@ def install_calibration(session_dir: Path, calibration: Path | None) -> None:
     write_text(target, Path(calibration).read_text())
 
 
+def check_plain_name(name: str, what: str) -> None:
+    """Refuse a trial or session name that is not one plain folder name: a separator or a ".."
+    would put the trial outside its session (``--trial ../../x``)."""
+    if not PLAIN_NAME.match(name) or ".." in name or name.startswith("."):
+        raise ArgumentError(f"{what} {name!r}: a name is letters, digits, _ - and . (not first), with no path "
+                            f"separator and no '..'")
+
+
+def check_session_path(session: Path) -> None:
+    """A session is a folder whose own name is plain, reached without '..' (the staging and
+    incomplete folders are made beside it, by its name)."""
+    if ".." in session.parts:
+        raise ArgumentError(f"--session {session}: give the session's folder without '..'")
+    check_plain_name(session.name, "--session folder name")
+
+
 def next_trial_name(session_dir: Path, stem: str) -> str:
     taken = {p.name for p in session_dir.iterdir()} if session_dir.exists() else set()
     k = 0
@@ -118,6 +138,8 @@ def record_trial(session_dir: str | Path, meta: TrialMeta, devices: Devices, sec
     TrialIncomplete (after setting the trial aside) when it stops half-way."""
     session_dir = Path(session_dir)
     check_tool_name(meta.tool, "--tool")
+    check_session_path(session_dir)
+    check_plain_name(meta.trial, "--trial")
     final = session_dir / meta.trial
     if final.exists():
         raise ArgumentError(f"trial {final} exists already: choose another name")
@@ -147,6 +169,11 @@ def record_trial(session_dir: str | Path, meta: TrialMeta, devices: Devices, sec
     finally:
         camera_stats = {c.name: c.stop().as_dict() for c in cameras}
         serial_stats = reader.stop().as_dict() if reader is not None else {}
+        stuck = [f"camera {c.name}" for c in cameras if c.stuck] + (["the Arduino's port"] if reader and reader.stuck
+                                                                    else [])
+        if stuck:                           # its thread may still write into the trial: set it aside
+            reason = (f"{reason}; " if reason else "") + f"the reader thread of {' and '.join(stuck)} did not stop " \
+                                                         f"within {STOP_TIMEOUT_S:g} s (left behind)"
         log.close()
         try:
             writer.close()
@@ -161,6 +188,7 @@ def record_trial(session_dir: str | Path, meta: TrialMeta, devices: Devices, sec
                    "frame,host_ns\n" + "".join(f"{i},{t}\n" for i, t in enumerate(stamps)))
     duration = _duration_s(writer.stamps)
     samples = serial_stats.get("samples", 0)
+    reason = reason or serial_stats.get("reset", "")      # a reset after the last progress check
     if not reason and (not samples or min(len(s) for s in writer.stamps.values()) < 2):
         reason = f"too little was recorded ({samples} serial samples, frames " \
                  f"{ {s: len(v) for s, v in writer.stamps.items()} })"
@@ -205,6 +233,8 @@ def _watch(cameras: list[Camera], reader: ArduinoReader, matrix: np.ndarray, sec
                 return f"camera {c.name} ({c.source}) stopped: {c.stats.lost or 'its thread ended'}"
         if not reader.running:
             return f"the Arduino's port stopped: {reader.stats.lost or 'its thread ended'}"
+        if reader.stats.reset:
+            return reader.stats.reset
         if elapsed - last_print >= PROGRESS_EVERY_S:
             last_print = elapsed
             print("\r" + progress_line(cameras, reader, matrix, elapsed, seconds), end="", file=out, flush=True)

@@ -13,9 +13,11 @@ T = TypeVar("T")
 
 
 class Group(BaseModel):
-    """A mapping of named parameters: each key declared, any other refused."""
+    """A mapping of named parameters: each key declared, any other refused. No number may be NaN
+    or infinite (a NaN passes every bound, since each comparison with it is false); the JSON
+    schema cannot say so, and config.validate refuses them before the schema is asked."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 class UniqueItems:

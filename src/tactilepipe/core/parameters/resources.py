@@ -1,6 +1,6 @@
 """`resources`: what each rule asks a cluster scheduler for (workflow/profiles/slurm)."""
 
-from pydantic import Field, NonNegativeInt, PositiveFloat
+from pydantic import Field, PositiveFloat
 
 from tactilepipe.core.parameters.base import Group, overlay_of
 
@@ -8,9 +8,9 @@ from tactilepipe.core.parameters.base import Group, overlay_of
 class JobResources(Group):
     """scheduler resources of one job: mem_mb (MB), runtime (minutes, the time limit), gpu (GPUs)"""
 
-    mem_mb: int = Field(ge=1)
-    runtime: int = Field(ge=1)
-    gpu: NonNegativeInt
+    mem_mb: int = Field(ge=1, le=2**24, description="at most 16 TiB, more than one node has")
+    runtime: int = Field(ge=1, le=43200, description="at most 30 days, longer than any queue allows")
+    gpu: int = Field(ge=0, le=64, description="at most 64, more than one node has")
 
 
 class RuleResources(Group):

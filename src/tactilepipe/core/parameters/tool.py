@@ -3,7 +3,7 @@ and the study's own published data."""
 
 from typing import Annotated, Literal
 
-from pydantic import Field, NonNegativeFloat, NonNegativeInt, PositiveFloat
+from pydantic import Field, NonNegativeFloat, PositiveFloat
 
 from tactilepipe.core.parameters.base import Group, RequiredKeys, Triple, UniqueList
 
@@ -52,9 +52,12 @@ class ToolSplit(Group):
     """Train/validation/test splits of the tool datasets."""
 
     fractions: Triple[Annotated[float, Field(gt=0, lt=1)]]
-    repeats: int = Field(ge=1, description="how many draws of the default split every variant is trained on "
-                                           "(repeat 0 is the one the figures draw)")
-    holdout_pose: NonNegativeInt
+    repeats: int = Field(ge=1, le=100, description="how many draws of the default split every variant is trained "
+                                                   "on (repeat 0 is the one the figures draw). At most 100: each "
+                                                   "repeat trains every variant again (8 fill the default scale's "
+                                                   "hour), and the workflow plans a job per run")
+    holdout_pose: int = Field(ge=0, le=100, description="leave-one-pose-out: the n-th pose of every tool (at most "
+                                                        "100: more poses than any grasp protocol records)")
     level_n: PositiveFloat
 
 
@@ -62,7 +65,7 @@ class SweepRun(Group):
     """An extra full-model run for error against run time."""
 
     depth: Depth
-    image_size: int = Field(ge=8)
+    image_size: int = Field(ge=8, le=1024, description="at most 1024, the largest tool_ingest.stored_size")
 
 
 class ToolTrain(Group):
@@ -74,26 +77,33 @@ class ToolTrain(Group):
     split: Literal["frame", "trial", "lopo"]
     loto: bool
     depth: Depth
-    image_size: int = Field(ge=8, description="side S of the square inputs the model is trained on "
-                                              "(the dataset's frames are area-downscaled to it)")
+    image_size: int = Field(ge=8, le=1024, description="side S of the square inputs the model is trained on "
+                                                       "(the dataset's frames are area-downscaled to it; at most "
+                                                       "1024, the largest tool_ingest.stored_size)")
     sweep: list[SweepRun]
-    lr: PositiveFloat
+    lr: float = Field(gt=0, le=10, description="Adam's learning rate (at most 10: far above any rate that trains; "
+                                               "the paper's is 1e-3)")
     lr_schedule: Literal["constant", "cosine"] = Field(
         description="constant: Adam at lr throughout (the paper); cosine: per batch from lr down to 0 at max_epochs")
-    batch_size: int = Field(ge=1)
-    max_epochs: int = Field(ge=1)
-    patience: int = Field(ge=1)
-    max_train_batches_per_epoch: NonNegativeInt
-    bn_recalibration_batches: NonNegativeInt = Field(
-        description="training batches that re-estimate BatchNorm statistics before each validation (0: off)")
+    batch_size: int = Field(ge=1, le=65536, description="frame pairs per batch (at most 65536: a batch of 64-px "
+                                                       "pairs that size is 4 GB of input alone)")
+    max_epochs: int = Field(ge=1, le=10000, description="at most 10000 (the default scale trains 8)")
+    patience: int = Field(ge=1, le=10000, description="epochs without a better validation loss before stopping "
+                                                     "(at most 10000, as max_epochs)")
+    max_train_batches_per_epoch: int = Field(ge=0, le=10**7, description="0 = the whole training split every epoch; "
+                                                                         "at most 1e7")
+    bn_recalibration_batches: int = Field(
+        ge=0, le=10000, description="training batches that re-estimate BatchNorm statistics before each validation "
+                                    "(0: off; at most 10000)")
     device: Literal["auto", "cpu", "cuda"]
     amp: bool
-    num_threads: int = Field(ge=1)
+    num_threads: int = Field(ge=1, le=1024, description="at most 1024, more cores than one machine has")
     gam_channel_gate: Literal["sigmoid", "none"] = Field(
         description="GAM channel branch: sigmoid-gated (ours) or ungated (the public code of study 000, "
                     "needed by its published weights)")
-    width: int = Field(ge=1, description="channels of the first encoder stage (the paper: 64); every layer's "
-                                         "channels and the head scale with it")
+    width: int = Field(ge=1, le=512, description="channels of the first encoder stage (the paper: 64); every "
+                                                 "layer's channels and the head scale with it. At most 512: the "
+                                                 "weights grow with its square, 100 MB at 64 and 6.4 GB at 512")
     kernels: Kernels = Field(
         description="numerical kernels: portable (the same bytes on every x86 CPU with AVX2; one thread, "
                     "no oneDNN) or native (each library's fastest code for this CPU)")
@@ -102,7 +112,7 @@ class ToolTrain(Group):
 class Predict(Group):
     """`tactilepipe predict`: one frame pair at a time, on a CPU other jobs share."""
 
-    num_threads: int = Field(ge=1)
+    num_threads: int = Field(ge=1, le=1024, description="at most 1024, more cores than one machine has")
     wait_policy: Literal["passive", "active"]
     kernels: Kernels
 
@@ -111,7 +121,7 @@ class PublicFile(Group):
     """A Git LFS file of study 000's public repository, checked against its size and sha256."""
 
     url: str = Field(min_length=1)
-    size: int = Field(ge=1, description="bytes")
+    size: int = Field(ge=1, le=2**40, description="bytes (at most 1 TiB)")
     sha256: str = Field(pattern=r"^[0-9a-f]{64}$")
 
 

@@ -2,7 +2,7 @@
 
 from typing import Literal
 
-from pydantic import Field, NonNegativeFloat, NonNegativeInt
+from pydantic import Field, NonNegativeFloat
 
 from tactilepipe.core.parameters.base import Group, Pair, Triple, UniqueList
 
@@ -154,11 +154,12 @@ class SimulateTool(Group):
     tools_used: UniqueList[str] = Field(min_length=1)
     tools: dict[str, ToolSpec] = Field(min_length=1)
     poses: list[GraspPose] = Field(min_length=1)
-    poses_per_tool: int = Field(ge=1)
-    normal_trials_per_pose: NonNegativeInt
-    shear_trials_per_pose: NonNegativeInt
-    frames_per_trial: int = Field(ge=1)
-    shear_frames_per_trial: int = Field(ge=1)
+    poses_per_tool: int = Field(ge=1, le=100, description="at most 100 (poses lists the grasp poses to use)")
+    normal_trials_per_pose: int = Field(ge=0, le=1000, description="at most 1000 per tool and pose: a simulated "
+                                                                   "session's frames are all held in memory once")
+    shear_trials_per_pose: int = Field(ge=0, le=1000, description="at most 1000, as normal_trials_per_pose")
+    frames_per_trial: int = Field(ge=1, le=100000, description="at most 100000 (55 min at 30 fps)")
+    shear_frames_per_trial: int = Field(ge=1, le=100000, description="at most 100000, as frames_per_trial")
     trial_spacing_s: float
     grasp: ToolGrasp
     press: Press

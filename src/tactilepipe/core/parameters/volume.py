@@ -2,7 +2,7 @@
 
 from typing import Annotated, Literal
 
-from pydantic import Field, NonNegativeFloat, NonNegativeInt, PositiveFloat
+from pydantic import Field, NonNegativeFloat, PositiveFloat
 
 from tactilepipe.core.parameters.base import Group, Triple, UniqueList, overlay_of
 
@@ -59,9 +59,9 @@ class SimulateVolume(GraspRegime):
     """Physics of the lift rig (study 001)."""
 
     volumes_ml: UniqueList[NonNegativeFloat] = Field(min_length=2)
-    lifts_per_volume: int = Field(ge=1)
+    lifts_per_volume: int = Field(ge=1, le=10000, description="at most 10000 per volume")
     unseen_volumes_ml: UniqueList[NonNegativeFloat]
-    unseen_lifts_per_volume: NonNegativeInt
+    unseen_lifts_per_volume: int = Field(ge=0, le=10000, description="at most 10000 per volume")
     rate_hz: SampleRate
     pose_rate_hz: PositiveFloat
     container_mass_g: PositiveFloat
@@ -143,18 +143,18 @@ class VolumeChecks(Group):
 class Folds(Group):
     """Repeated seeded train/test draws stratified by volume."""
 
-    n_folds: int = Field(ge=1)
-    train_lifts_per_volume: int = Field(ge=1)
-    test_lifts_per_volume: int = Field(ge=1)
+    n_folds: int = Field(ge=1, le=1000, description="at most 1000 draws (each trains every model again)")
+    train_lifts_per_volume: int = Field(ge=1, le=10000, description="at most 10000, as lifts_per_volume")
+    test_lifts_per_volume: int = Field(ge=1, le=10000, description="at most 10000, as lifts_per_volume")
 
 
 class MlpGrid(Group):
     """Grid search on the first fold's training lifts (lift-grouped inner CV)."""
 
-    hidden_units: list[Annotated[int, Field(ge=1)]] = Field(min_length=1)
+    hidden_units: list[Annotated[int, Field(ge=1, le=4096)]] = Field(min_length=1, description="each at most 4096")
     alpha: list[NonNegativeFloat] = Field(min_length=1)
     learning_rate: list[PositiveFloat] = Field(min_length=1)
-    inner_folds: int = Field(ge=2)
+    inner_folds: int = Field(ge=2, le=100, description="at most 100")
     modality: str
 
 
@@ -166,15 +166,15 @@ class Mlp(Group):
     """Study 001's MLP (hyper-parameters from its grid search)."""
 
     modalities: dict[ModalityName, ForceAxes] = Field(min_length=1)
-    hidden_units: int = Field(ge=1)
+    hidden_units: int = Field(ge=1, le=4096, description="at most 4096 (the study's grid goes to 8)")
     alpha: NonNegativeFloat
-    batch_size: int = Field(ge=1)
+    batch_size: int = Field(ge=1, le=10**6, description="at most 1e6 samples")
     learning_rate: PositiveFloat
     tol: NonNegativeFloat
-    n_iter_no_change: int = Field(ge=1)
-    max_iter: int = Field(ge=1)
+    n_iter_no_change: int = Field(ge=1, le=10**6, description="at most 1e6, as max_iter")
+    max_iter: int = Field(ge=1, le=10**6, description="at most 1e6 epochs")
     grid: MlpGrid
-    restarts: int = Field(ge=1)
+    restarts: int = Field(ge=1, le=1000, description="at most 1000 initialisations per fit")
 
 
 class Baseline(Group):
@@ -182,7 +182,7 @@ class Baseline(Group):
 
     mu_min: NonNegativeFloat
     mu_max: PositiveFloat
-    n_mu: int = Field(ge=2)
+    n_mu: int = Field(ge=2, le=10**6, description="at most 1e6 grid points")
     gravity: PositiveFloat
     container_mass_g: NonNegativeFloat
 
@@ -190,7 +190,8 @@ class Baseline(Group):
 class Drift(Group):
     """The drift analysis: model fits and the recalibration tolerance."""
 
-    poly_degrees: list[Annotated[int, Field(ge=1)]] = Field(min_length=1)
+    poly_degrees: list[Annotated[int, Field(ge=1, le=20)]] = Field(min_length=1, description="each at most 20 (a "
+                                                                                                 "higher polynomial only fits noise)")
     tolerance_n: PositiveFloat
 
 

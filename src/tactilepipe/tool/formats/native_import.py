@@ -68,6 +68,6 @@ def read_native_trial(trial_dir: str | Path, bias_window_s: float = 0.5) -> RawT
         trial=f"{session_dir.name}/{trial_dir.name}", tool=meta.tool, kind=meta.kind,
         orientation_deg=meta.orientation_deg, insertion_mm=meta.insertion_mm, frames=frames,
         force_host_ns=host_ns, force_n=force, source=str(trial_dir),
-        clock={"method": "serial_start+xcorr", "refine": True},
+        clock={"method": "serial_start+xcorr", "refine": True, **({"arduino_wraps": log.wraps} if log.wraps else {})},
         drops={**{f"serial: {k}": v for k, v in log.drops.items()},
                **{f"{sensor}: frame files not in frames.csv": n for sensor, n in extra.items() if n}})

@@ -190,6 +190,11 @@ def read_calibration(path: str | Path) -> np.ndarray:
         raise InputError(path, "missing: the session needs the Nano17 calibration file") from None
     except ET.ParseError as exc:
         raise InputError(path, f"not valid calibration XML: {exc}") from None
+    spaces = sorted({el.tag[1:].split("}", 1)[0] for el in root.iter() if el.tag.startswith("{")})
+    if spaces:                              # its UserAxis rows would read as missing
+        raise InputError(path, f"the XML declares the namespace {spaces[0]!r} (xmlns): ATI's calibration files "
+                               f"have none, so its elements are not <Calibration> and <UserAxis>; if this is the "
+                               f"Nano17's ATI file, remove the xmlns declaration")
     rows = {ax.get("Name"): ax.get("values", "") for ax in root.iter("UserAxis")}
     if set(AXES) - set(rows):
         raise InputError(path, f"UserAxis rows missing: {sorted(set(AXES) - set(rows))}")
@@ -209,9 +214,26 @@ def read_calibration(path: str | Path) -> np.ndarray:
     if not np.isfinite(matrix).all():
         a = AXES[int(np.argmax(~np.isfinite(matrix).all(axis=1)))]
         raise InputError(path, "calibration values must be finite numbers", f"UserAxis {a}")
-    matrix = matrix * _unit_factors(path, root)[:, None]
+    factors = _unit_factors(path, root)
+    _check_cells(path, matrix, factors)
+    matrix = matrix * factors[:, None]
     _check_matrix(path, matrix)
     return matrix
+
+
+def _check_cells(path: Path, matrix: np.ndarray, factors: np.ndarray) -> None:
+    """Refuse a cell that alone maps the ADC's span beyond the sensor's plausible range: named by
+    its row and column, before the whole matrix is judged (its condition number would only say
+    "singular", or overflow)."""
+    high = SPAN_FACTORS[1] * RATED_RANGE
+    with np.errstate(over="ignore", invalid="ignore"):
+        span = np.abs(matrix) * factors[:, None] * ADC_VOLTS
+    for (i, j) in zip(*np.nonzero(~(span <= high[:, None]))):
+        unit = "N" if AXES[i].startswith("F") else "N·mm"
+        raise InputError(path, f"value {j + 1} of the row, {matrix[i, j]:.6g}, is out of range: alone it maps the "
+                               f"ADC's {ADC_VOLTS:g} V to {span[i, j]:.3g} {unit}, beyond {high[i]:.3g} {unit} "
+                               f"(the Nano17's rated ±{RATED_RANGE[i]:g} {unit} times {SPAN_FACTORS[1]:g})",
+                         f"UserAxis {AXES[i]}")
 
 
 def _unit_factors(path: Path, root) -> np.ndarray:

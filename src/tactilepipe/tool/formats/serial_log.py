@@ -5,6 +5,13 @@ logging stops, the odd corrupted byte. Such lines are dropped and counted (repor
 report); a log where more than ``max_drop_fraction`` of the lines are bad, or whose Arduino clock
 jumps backwards (a reset mid-trial, after which no single offset aligns the clocks), is an error.
 
+A jump back that is a counter wrapping around is not a reset: ``millis()`` wraps at 2**32 ms, a
+clock printed as ``micros() / 1000`` at 2**32 µs (4294967.296 ms, every 71.6 min of a board the
+port's open does not reset). When the sample before sits just below the wrap and the one after
+just above 0, one ordinary sample step apart, the times after it are unwrapped (the wrap is
+listed in ``SerialLog.wraps``); a jump from near the wrap point with a gap after it is named as a
+wrap that cannot be unwrapped, anything else as a reset.
+
 A sample with any gauge channel at the 10-bit ADC rails (count 0 or ADC_COUNTS) is saturated: the
 force was beyond the Nano17's range and calibrates to a clipped, too small value. Such samples are
 dropped with the reason "ADC saturated" and counted (``SerialLog.saturated``), never passed on as a
@@ -27,6 +34,8 @@ from tactilepipe.tool.formats.native_layout import ADC_COUNTS, SERIAL_HEADER
 N_CHANNELS = 6
 MAX_ARDUINO_MS = 2**32 - 1           # millis() is an unsigned 32-bit counter
 MAX_HOST_NS = 2**62                  # host clock in ns since 1970: far beyond any real date
+WRAPS = {"millis()": 2**32, "micros()/1000": 2**32 / 1000}    # where an Arduino clock in ms wraps to 0
+WRAP_NEAR_MS = 10_000                # a jump back from this close below a wrap point is taken for one
 _INT = re.compile(r"^-?[0-9]+$")     # plain decimal integers only (int() would take "1_0", "+1", " 1")
 _GARBAGE = re.compile(r"[^\x20-\x7e\t\r]")   # non-ASCII (decoded as U+FFFD) and control bytes
 SATURATED = "ADC saturated"          # drop reason of a sample with a gauge channel at the ADC rails
@@ -39,6 +48,7 @@ class SerialLog:
     counts: np.ndarray              # (n, 6) ADC counts
     line_numbers: np.ndarray        # (n,) 1-based line of each kept sample, for error messages
     drops: Counter = field(default_factory=Counter)
+    wraps: list[str] = field(default_factory=list)     # clock wraps unwrapped: "millis() at line N"
 
     @property
     def saturated(self) -> int:
@@ -114,11 +124,8 @@ def read_serial_log(path: str | Path, max_drop_fraction: float = 0.2) -> SerialL
     t = np.asarray(times, np.int64)
     c = np.asarray(counts, np.int64).reshape(-1, N_CHANNELS)
     numbers = np.asarray(numbers)
+    t, wraps = _unwrap(path, t, numbers)
     steps = np.diff(t)
-    if (steps < 0).any():
-        k = int(np.argmax(steps < 0)) + 1
-        raise InputError(path, f"Arduino clock jumps back from {t[k - 1]} to {t[k]} ms (a reset mid-trial?)",
-                         f"line {numbers[k]}")
     if (steps == 0).any():
         k = int(np.argmax(steps == 0)) + 1
         raise InputError(path, f"duplicated Arduino timestamp {t[k]} ms", f"line {numbers[k]}")
@@ -133,4 +140,33 @@ def read_serial_log(path: str | Path, max_drop_fraction: float = 0.2) -> SerialL
         drops[SATURATED] += int(saturated.sum())
         keep = ~saturated
         t, c, numbers = t[keep], c[keep], numbers[keep]
-    return SerialLog(int(header.group(1)), t, c, numbers, drops)
+    return SerialLog(int(header.group(1)), t, c, numbers, drops, wraps)
+
+
+def _unwrap(path: Path, t: np.ndarray, numbers: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """``t`` with each counter wrap undone (see the module's docstring), and the wraps; a jump
+    back that is no wrap is an error naming it as a reset, or as a wrap with a gap after it."""
+    steps = np.diff(t)
+    back = np.flatnonzero(steps < 0) + 1
+    if not len(back):
+        return t, []
+    forward = steps[steps > 0]
+    step = float(np.median(forward)) if len(forward) else 0.0
+    out, wraps, added = t.astype(np.float64), [], 0.0
+    for k in back:
+        before, after = int(t[k - 1]), int(t[k])
+        near = [(name, m) for name, m in WRAPS.items() if m - WRAP_NEAR_MS <= before < m]
+        if not near:
+            raise InputError(path, f"Arduino clock jumps back from {before} to {after} ms (a reset mid-trial?)",
+                             f"line {numbers[k]}")
+        name, modulus = near[0]
+        gap = after + modulus - before
+        if not 0 < gap <= max(4 * step, 1.0):
+            raise InputError(path, f"Arduino clock wraps from {before} to {after} ms (its {name} counter passing "
+                                   f"{modulus:.10g} ms) with {gap:.0f} ms between the samples, {gap / step if step else 0:.0f} "
+                                   f"times the {step:.0f}-ms step: samples are missing there, not unwrapped",
+                             f"line {numbers[k]}")
+        added += modulus
+        out[k:] = t[k:] + added
+        wraps.append(f"{name} at line {numbers[k]}")
+    return np.round(out).astype(np.int64), wraps

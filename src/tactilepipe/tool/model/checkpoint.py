@@ -13,7 +13,7 @@ import numpy as np
 import torch
 
 from tactilepipe.core.atomic import atomic_path
-from tactilepipe.core.errors import InputError
+from tactilepipe.core.errors import InputError, TactilepipeError
 from tactilepipe.tool.model.network import PAPER_WIDTH
 from tactilepipe.tool.model.train_config import TrainConfig
 
@@ -40,7 +40,36 @@ def data_fingerprint(data) -> str:
     return h.hexdigest()[:16]
 
 
+def nonfinite_tensor(state: dict) -> tuple[str, int, int] | None:
+    """(name, non-finite count, size) of the first floating-point tensor of a state dict holding a
+    NaN or an infinity; None when every value is finite."""
+    for name, value in state.items():
+        if torch.is_tensor(value) and value.is_floating_point():
+            bad = int((~torch.isfinite(value)).sum())
+            if bad:
+                return name, bad, value.numel()
+    return None
+
+
+def check_finite_weights(state: dict, path) -> None:
+    """Refuse a checkpoint whose weights hold NaN or inf: a model that diverged (or a damaged file)
+    estimates NaN for every input, which would otherwise be printed as estimates."""
+    bad = nonfinite_tensor(state)
+    if bad:
+        name, count, size = bad
+        raise InputError(path, f"weights: tensor '{name}' holds {count} non-finite value(s) (NaN or inf) of {size}: "
+                               f"the model diverged or the file is damaged; not loaded")
+
+
 def save_checkpoint(obj: dict, path: Path) -> None:
+    """Write ``obj`` atomically; weights holding NaN or inf are refused, never written (a resumed
+    or evaluated run would take them for a model)."""
+    bad = nonfinite_tensor(obj.get("model") or {})
+    if bad:
+        name, count, size = bad
+        raise TactilepipeError(f"{path}: not written: the trained weights diverged, tensor '{name}' holds {count} "
+                               f"non-finite value(s) (NaN or inf) of {size} (epoch {obj.get('meta', {}).get('epoch')}); "
+                               f"a lower tool_train.lr may train")
     with atomic_path(path) as tmp:
         torch.save(obj, tmp)
 
@@ -61,6 +90,8 @@ def load_checkpoint(path: Path, raw=None) -> dict:
     if not isinstance(raw, dict) or raw.get("format") != CHECKPOINT_FORMAT:
         raise InputError(path, f"not a tool-model checkpoint (expected format {CHECKPOINT_FORMAT}, or the public "
                                f"code's state dict)")
+    if isinstance(raw.get("model"), dict):
+        check_finite_weights(raw["model"], path)
     return raw
 
 

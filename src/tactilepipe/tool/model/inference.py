@@ -11,7 +11,7 @@ import torch
 from torch import nn
 
 from tactilepipe.core.errors import ArgumentError, InputError
-from tactilepipe.tool.model.checkpoint import UNRECORDED, load_checkpoint
+from tactilepipe.tool.model.checkpoint import UNRECORDED, check_finite_weights, load_checkpoint
 from tactilepipe.tool.model.network import build_model
 from tactilepipe.tool.model.train import denormalise, resolve_device, to_input, uses_channels_last
 
@@ -32,6 +32,7 @@ def load_model(checkpoint_path: str | Path, device: str = "cpu", channels_last: 
             raise InputError(checkpoint_path, "a public-code checkpoint records no input size: give the image "
                                               "size to run it at")
         model, meta = public_weights.public_model(raw, image_size, Path(checkpoint_path))
+        check_finite_weights(model.state_dict(), checkpoint_path)
     else:
         model, meta = _own_model(Path(checkpoint_path), raw)
     model = model.to(resolve_device(device))

@@ -141,6 +141,9 @@ def _stream(est: PairEstimator, trial, fmt, p, limit, out) -> dict:
     for k, (i, j) in enumerate(zip(il, ir)):
         t0 = time.perf_counter()
         pred = est.estimate(left.load(int(i)), right.load(int(j)))
+        if not np.isfinite(pred):          # finite weights can still overflow: never print it as a force
+            raise InputError(trial, f"frame pair {k} (left frame {i}, right frame {j}): the model's estimate is {pred}, "
+                                    f"not a force; {k} pair(s) before it were estimated")
         latencies.append((time.perf_counter() - t0) * 1000)
         preds.append(pred)
         t_s = (left.host_ns[i] - left.host_ns[il[0]]) / 1e9
