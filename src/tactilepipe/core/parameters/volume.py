@@ -124,8 +124,9 @@ class PapillarrayIngest(Group):
 class VolumeChecks(Group):
     """Each lift's label and sensors against the other lifts of its session (volume/witness.py)."""
 
-    min_session_lifts: int = Field(ge=3, description="fewer lifts in a session: no session comparison or label "
-                                                     "fit, only the lower bound (the pads carry the labelled water)")
+    min_session_lifts: int = Field(ge=3, le=10000, description="fewer lifts in a session: no session comparison or "
+                                   "label fit, only the lower bound (the pads carry the labelled water); at most "
+                                   "10000, as lifts_per_volume")
     outlier_k: PositiveFloat = Field(description="robust standard deviations (1.4826 x MAD over the session) "
                                                  "beyond which a lift stands out")
     rest_floor_n: PositiveFloat = Field(description="N: a sensor's rest level within this of the session's never "
