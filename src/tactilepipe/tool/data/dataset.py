@@ -145,6 +145,9 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
     # not depend on the clock fit that left a trial out)
     outliers = session_outliers(seen, sync["witness"]) if "witness" in sync else {}
     standing_out = {seen[i]["source"]: why for i, why in outliers.items()}
+    for entry in dropped:                      # left out already: the comparison's finding is added
+        if entry["source"] in standing_out:
+            entry["reason"] += "; and it " + standing_out[entry["source"]]
     for trial in list(trials):
         why = standing_out.get(trial["info"]["source"])
         if why:

@@ -123,9 +123,10 @@ def label_witness(witness: dict, evidence: dict, frames: dict, grays: dict, forc
         metrics[f"rest_{end}_n"] = round(level, 4)
         if level > tol["rest_n"]:
             failed[f"rest at the {end}"] = (
-                f"|F| reads {level:.2f} N over the {k} {'first' if end == 'start' else 'last'} frames and the force log "
-                f"{'before' if end == 'start' else 'after'} them, where the trial rests (tool_ingest.witness.rest_n {tol['rest_n']:g} N): the zero-force offset is off by about that "
-                f"(taken under load or under a pull), or the trial does not {end} unloaded")
+                f"|F| reads {level:.2f} N over the {k} {'first' if end == 'start' else 'last'} frames and the force "
+                f"log {'before' if end == 'start' else 'after'} them, where the trial rests (tool_ingest.witness.rest_n "
+                f"{tol['rest_n']:g} N): the zero-force offset is off by about that (taken under load or under a "
+                f"pull), or the trial does not {end} unloaded")
     metrics["rest_fz_n"] = round(float(np.mean(rest_fz)), 4)     # signed: the session compares it
     vec = np.concatenate(list(at.values()))
     mag = np.linalg.norm(vec, axis=1)
