@@ -202,9 +202,9 @@ def test_a_force_log_that_starts_mid_press_is_left_out_and_named(smoke_params, t
     assert [t["trial"] for t in qc["trials"]] == [f"lab-2/{names[1]}"]
     (left,) = qc["dropped_trials"]
     # the witness of the rest level at both ends names it first (tool/data/witness.py), in either direction
-    assert left["trial"] == f"lab-2/{names[0]}" and "witness 'rest at the start'" in left["reason"]
+    assert left["trial"] == f"lab-2/{names[0]}" and "witness 'rest at both ends'" in left["reason"]
     assert "taken under load" in left["reason"]
-    with pytest.raises(InputError, match=f"no 'normal' trials among 1 shards .*lab-2/{names[0]}: witness 'rest at"):
+    with pytest.raises(InputError, match=f"no 'normal' trials among 1 shards .*lab-2/{names[0]}: witness 'rest at both"):
         build_tool_dataset(shards[:1], "normal", tmp_path / "data2", sync)
 
 
