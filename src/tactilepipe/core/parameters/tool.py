@@ -20,6 +20,34 @@ class ClockSync(Group):
     min_force_range_n: PositiveFloat
 
 
+class IngestWitness(Group):
+    """Per native trial, the witnesses of its force labels (tool/data/witness.py): a trial one of
+    them fails is left out of the dataset, named with its numbers."""
+
+    adc_mid_counts: float = Field(gt=0, le=512, description="counts the unloaded gauges may sit from the ADC's "
+                                                             "mid level 511.5")
+    rate_rel: float = Field(gt=0, le=1, description="relative difference allowed between a declared rate "
+                                                    "(meta.json) and the one the stamps show")
+    rest_frames: int = Field(ge=1, le=1000, description="frames at each end of a trial where it rests")
+    rest_n: float = Field(gt=0, le=100, description="N: |F| allowed at rest, at each end of a trial")
+    loaded_n: float = Field(gt=0, le=100, description="N: |F| from which a label counts as loaded (direction)")
+    min_normal_share: float = Field(ge=0, le=1, description="median share of |F| that Fz carries while loaded")
+    min_image_score: float = Field(ge=-1, le=1, description="correlation of tactile change and |F| at the labels' "
+                                                            "clock (refined or recorded clocks only)")
+
+
+class SessionWitness(Group):
+    """The dataset's comparison of each trial with its session (tool/data/witness.py)."""
+
+    max_z: float = Field(gt=0, le=1000, description="robust z beyond which a trial stands out")
+    min_trials: int = Field(ge=2, le=100000, description="other trials a comparison needs (in the session, or in the "
+                                                         "pose for the gain)")
+    gain_floor: float = Field(gt=0, le=10, description="floor of the spread of log gain (force per unit change)")
+    offset_floor_n: float = Field(gt=0, le=100, description="N: floor of the spread of Fz at rest (both ends)")
+    lag_floor_s: float = Field(gt=0, le=10, description="s: floor of the spread of the fingers' lag difference")
+    rate_floor: float = Field(gt=0, le=1, description="floor of the spread of log frame rate")
+
+
 class RosTopics(Group):
     """Topics of trials recorded as ROS bags."""
 
@@ -36,6 +64,7 @@ class ToolIngest(Group):
     max_offset_s: PositiveFloat
     ros_topics: RosTopics
     clock: ClockSync
+    witness: IngestWitness
 
 
 class ToolSync(Group):
@@ -46,6 +75,7 @@ class ToolSync(Group):
     reference: Literal["first", "median_pre_contact"]
     contact_n: PositiveFloat
     normal_sign: Literal[-1, 1]
+    witness: SessionWitness
 
 
 class ToolSplit(Group):

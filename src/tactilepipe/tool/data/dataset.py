@@ -36,6 +36,7 @@ from tactilepipe.tool.data.ingest import read_shard_info
 from tactilepipe.tool.formats.native_layout import frame_orientation
 from tactilepipe.tool.formats.raw import SENSORS
 from tactilepipe.tool.data.sync import interpolate_at, pair_frames
+from tactilepipe.tool.data.witness import session_outliers
 
 LOADED_START_N = 1.0             # N: a normal force this far below zero (5th percentile) means a loaded zero
 
@@ -116,10 +117,16 @@ def bad_zero(force: np.ndarray, normal_sign: float) -> str | None:
 
 
 def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict) -> dict:
-    trials, dropped = [], []
+    trials, dropped, seen = [], [], []
     for shard in shards:
         info = read_shard_info(shard)
         if info["kind"] != kind:
+            continue
+        seen.append(info)
+        failed = info.get("witness", {}).get("failed")
+        if failed:                                # a witness of its labels says they are wrong
+            dropped.append({"trial": info["trial"], "source": info["source"],
+                            "reason": "; ".join(f"witness '{k}': {v}" for k, v in failed.items())})
             continue
         if info["clock"].get("dropped"):          # ingest could not trust its labels' clock
             dropped.append({"trial": info["trial"], "source": info["source"], "reason": info["clock"]["dropped"]})
@@ -133,6 +140,19 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
             raise InputError(source, f"frames are {o}, those of {trials[0]['info']['source']} are "
                                      f"{next(iter(shapes.values()))}: one dataset cannot mix frame orientations "
                                      f"(rotate them to one)")
+    # every trial against the others of its session: what no named witness catches still stands out
+    # (the others are every trial of the session read, left out or not: a rate or a rest level does
+    # not depend on the clock fit that left a trial out)
+    outliers = session_outliers(seen, sync["witness"]) if "witness" in sync else {}
+    standing_out = {seen[i]["source"]: why for i, why in outliers.items()}
+    for entry in dropped:                      # left out already: the comparison's finding is added
+        if entry["source"] in standing_out:
+            entry["reason"] += "; and it " + standing_out[entry["source"]]
+    for trial in list(trials):
+        why = standing_out.get(trial["info"]["source"])
+        if why:
+            trials.remove(trial)
+            dropped.append({"trial": trial["info"]["trial"], "source": trial["info"]["source"], "reason": why})
     for trial in list(trials):
         wrong = bad_zero(trial["force"], sync["normal_sign"])
         if wrong:
@@ -177,7 +197,8 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
                        "clock": {k: v for k, v in info["clock"].items() if k != "curve"},   # curve: in the shard
                        "force_min_n": float(label_mag.min()), "force_max_n": float(label_mag.max()),
                        "reference_frames": int(len(ref_idx)), "source": info["source"],
-                       "frame_size": info.get("frame_size", {})})
+                       "frame_size": info.get("frame_size", {}),
+                       "witness": info.get("witness", {}).get("metrics", {})})
             k += m
         frames.flush()
         refs.flush()

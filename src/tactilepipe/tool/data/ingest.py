@@ -23,6 +23,7 @@ from tactilepipe.core.errors import InputError
 from tactilepipe.tool.formats.native_layout import RATED_RANGE
 from tactilepipe.tool.formats.raw import RawTrial
 from tactilepipe.tool.data.clock_sync import change_signal, fit_offset, frozen_frames, frozen_runs, judge
+from tactilepipe.tool.data.witness import chain_witness, label_witness
 
 
 def preprocess(bgr: np.ndarray, size: int) -> np.ndarray:
@@ -103,6 +104,14 @@ def _refine_clock(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.nd
                                      f"the edge of the search window +-{search} s: the true offset may lie beyond "
                                      f"it (tool_ingest.max_offset_s), or the images do not follow the force")
     why = judge(fit, clock, search)
+    if raw.clock.get("recorded") and clock["on_low_score"] != "refuse":
+        # a trial `tactilepipe record` wrote: its port-open stamp puts the Arduino's clock within a
+        # frame of the cameras' (docs/rig.md); the image fit, rejected on short trials and frames off
+        # where accepted, is kept as evidence only
+        record.update({"image_shift_s": record["refined_shift_s"], "refined_shift_s": 0.0,
+                       "port_open": "recorded trial: the recorder's port-open clock is kept"
+                                    + (f" (image fit not usable: {why})" if why else "")})
+        return 0, record
     if why is None:
         return int(round(fit.shift_s * 1e9)), record
     if clock["on_low_score"] == "refuse":
@@ -217,12 +226,24 @@ def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, ingest: dict
                                          f"±{PLAUSIBLE_FORCE_N[2]:g} N; up to {worst:.4g} N here)")
     clock = dict(raw.clock)
     grays = {name: d[1] for name, d in decoded.items()}
-    if clock.get("refine"):
+    # native trials: witnesses of every label, from outside the force chain (tool/data/witness.py)
+    witness = chain_witness(raw.evidence, raw.frames, ingest["witness"]) \
+        if raw.evidence and "witness" in ingest else None
+    if clock.get("refine") and witness and witness["failed"]:
+        # the counts or the stamps are not what they claim: no clock fit on them (its error would
+        # name the clock); the trial is left out for the witness's cause
+        clock.update({"refined_shift_s": 0.0, "dropped": "not aligned: " + "; ".join(witness["failed"])})
+    elif clock.get("refine"):
         _check_frozen(raw, grays, force_ns, force, ingest["clock"]["min_force_range_n"], whole_only=True)
         shift_ns, record = _refine_clock(raw, grays, force_ns, force, ingest)
         force_ns = force_ns + shift_ns
         clock.update(record)
     _check_frozen(raw, grays, force_ns, force, ingest["clock"]["min_force_range_n"])
+    if witness is not None:
+        trusted = bool(clock.get("refine")) and not clock.get("fallback") and not clock.get("dropped")
+        label_witness(witness, raw.evidence, raw.frames, grays, force_ns, force, trusted, ingest["witness"])
+        for name, why in witness["failed"].items():
+            print(f"warning: {raw.source}: left out of the dataset, witness '{name}': {why}", file=sys.stderr)
     rows_sensor, rows_t, rows_png = [], [], []
     for name, (pngs, _, _) in decoded.items():
         rows_sensor += [name] * len(pngs)
@@ -248,6 +269,8 @@ def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, ingest: dict
             "drops": drops, "frames": {n: len(f) for n, f in raw.frames.items()}, "force_samples": n_force,
             "frame_size": {n: d[2] for n, d in decoded.items()},   # [w, h] before the square resize
             "source": raw.source}
+    if witness is not None:
+        info["witness"] = witness
     table = table.replace_schema_metadata({b"tactilepipe": json.dumps(info).encode()})
     with atomic_path(shard) as tmp:
         pq.write_table(table, tmp, compression="zstd")

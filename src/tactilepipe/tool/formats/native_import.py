@@ -64,10 +64,18 @@ def read_native_trial(trial_dir: str | Path, bias_window_s: float = 0.5) -> RawT
                                                   f"to take the zero-force bias from")
     force = calibrate(log.counts, matrix, log.counts[rest].mean(axis=0))[:, :3]
     host_ns = log.start_host_ns + log.arduino_ms * 1_000_000
+    # `tactilepipe record` stamps the port-open time as the Arduino resets: its clock is good to a
+    # frame (docs/rig.md), better than an image fit on a short trial (tool/data/ingest.py)
+    recorded = isinstance(meta.notes, dict) and "recorder" in meta.notes
+    steps = np.diff(log.arduino_ms)
+    evidence = {"unloaded_counts": [round(float(v), 2) for v in log.counts[rest].mean(axis=0)],
+                "declared_fps": float(meta.camera_fps), "declared_serial_hz": float(meta.serial_hz),
+                "serial_hz": float(1000.0 / np.median(steps)) if len(steps) else None, "bias_window_s": bias_window_s}
     return RawTrial(
         trial=f"{session_dir.name}/{trial_dir.name}", tool=meta.tool, kind=meta.kind,
         orientation_deg=meta.orientation_deg, insertion_mm=meta.insertion_mm, frames=frames,
         force_host_ns=host_ns, force_n=force, source=str(trial_dir),
-        clock={"method": "serial_start+xcorr", "refine": True, **({"arduino_wraps": log.wraps} if log.wraps else {})},
+        clock={"method": "serial_start+xcorr", "refine": True, "recorded": recorded,
+               **({"arduino_wraps": log.wraps} if log.wraps else {})}, evidence=evidence,
         drops={**{f"serial: {k}": v for k, v in log.drops.items()},
                **{f"{sensor}: frame files not in frames.csv": n for sensor, n in extra.items() if n}})

@@ -42,3 +42,5 @@ class RawTrial:
     reference: dict = field(default_factory=dict)  # sensor -> BGR zero-force reference frame, where the
                                          # format fixes one apart from the frames (public layout: frame 0,
                                          # kept even when its own label was dropped); else the first pair
+    evidence: dict = field(default_factory=dict)   # facts outside the force chain the format records (native:
+                                         # unloaded ADC counts, declared rates, recorder): tool/data/witness.py

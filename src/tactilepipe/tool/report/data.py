@@ -37,8 +37,9 @@ def qc_markdown(qc: dict, label: str) -> str:
                  f"{qc['image_size']} px: the aspect ratio is not kept.", ""]
     dropped = qc.get("dropped_trials", [])
     if dropped:
-        head += [f"**Left out:** {len(dropped)} trial(s) whose force clock could not be aligned to the cameras "
-                 f"(tool_ingest.clock.on_low_score: drop):", ""] + \
+        head += [f"**Left out:** {len(dropped)} trial(s) whose labels cannot be trusted, each with its cause (a "
+                 f"force clock not aligned to the cameras, a witness of its labels, or a trial standing out from "
+                 f"its session: docs/robustness.md, \"Every label has a witness\"):", ""] + \
                 [f"- {d['trial']} ({d['source']}): {d['reason']}" for d in dropped] + [""]
     fallback = [t["trial"] for t in qc["trials"] if t["clock"].get("fallback")]
     if fallback:
