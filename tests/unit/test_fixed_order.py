@@ -119,3 +119,38 @@ def test_the_bytes_are_the_same_on_emulated_cpus(kernel_cache, tmp_path):
     with ThreadPoolExecutor(3) as pool:
         digests = dict(zip(("host",) + EMULATED, pool.map(run, (None,) + EMULATED)))
     assert len(set(digests.values())) == 1, digests
+
+
+TRAIN_TWICE = r"""
+import json, sys
+from pathlib import Path
+from tactilepipe.tool.model.kernels import use_kernels
+active = use_kernels("portable")                # before torch loads, as the training stage does
+sys.path.insert(0, sys.argv[2])
+from support.tool_data import make_dataset, make_split_dict, quick_cfg
+from tactilepipe.tool.data.loader import ToolFrames
+from tactilepipe.tool.model.train import train
+from tactilepipe.tool.report.portability import weights_digest
+root = Path(sys.argv[1])
+data = ToolFrames(make_dataset(root / "data", n_trials=8, per_trial=4), "normal")
+digests = []
+for run in ("a", "b"):
+    cfg = quick_cfg(kernels="portable", num_threads=1, max_epochs=1, width=8, bn_recalibration_batches=0)
+    train(data, make_split_dict(data), cfg, root / run, progress=False)
+    digests.append(weights_digest(root / run / "best.pt"))
+print(json.dumps({"active": active, "digests": digests}))
+"""
+
+
+@pytest.mark.slow
+def test_portable_training_runs_on_the_fixed_order_kernels_and_repeats_its_bytes(tmp_path):
+    import json
+    import sys
+    from pathlib import Path
+    proc = subprocess.run([sys.executable, "-c", TRAIN_TWICE, str(tmp_path), str(Path(__file__).parents[1])],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["active"]["layers"] == "fixed-order"
+    a, b = out["digests"]
+    assert a == b
