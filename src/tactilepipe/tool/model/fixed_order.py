@@ -1,7 +1,7 @@
 """Fixed-order matrix products, convolutions and linear layers: bytes that no CPU can change.
 
 Each output element of ``gemm`` is one chain of fused multiply-adds over the reduction index, in
-increasing order (csrc/fixed_order_gemm.c). The vector lanes and the register tiles split only the
+increasing order (fixed_order_c.py). The vector lanes and the register tiles split only the
 output elements, so the result depends neither on the blocking nor on the vector width, and FMA is
 correctly rounded: every x86-64 CPU with AVX2 and FMA gives the same bits, at AVX2 speed. MKL's
 COMPATIBLE branch, the library path that also gives the same bits on Intel and AMD, is SSE2 code
@@ -15,7 +15,8 @@ while ``set_enabled(True)`` is in force (kernels.py turns it on with the portabl
 call torch's own otherwise.
 
 The C source is compiled with the system's C compiler on first use, into a cache keyed by the
-hash of the source and the flags (``TACTILEPIPE_KERNEL_CACHE``, else ~/.cache/tactilepipe).
+hash of the source and the flags (``TACTILEPIPE_KERNEL_CACHE``, else ~/.cache/tactilepipe); the
+compiler reads a copy written there, so a stage reads no file of the project for it.
 """
 
 from __future__ import annotations
@@ -32,8 +33,7 @@ import torch
 from torch.nn import functional as F
 
 from tactilepipe.core.errors import TactilepipeError
-
-SOURCE = Path(__file__).with_name("csrc") / "fixed_order_gemm.c"
+from tactilepipe.tool.model.fixed_order_c import SOURCE
 # No -ffast-math, no contraction: the source's fma calls are the only fused operations.
 CFLAGS = ("-O2", "-mavx2", "-mfma", "-ffp-contract=off", "-fno-fast-math", "-fPIC", "-shared")
 _lib = None
@@ -60,7 +60,7 @@ def _cache_dir() -> Path:
 
 def library_path() -> Path:
     """Where the compiled library of this source and these flags lives (built or not)."""
-    digest = hashlib.sha256(SOURCE.read_bytes() + " ".join(CFLAGS).encode()).hexdigest()[:16]
+    digest = hashlib.sha256(SOURCE.encode() + b"\0" + " ".join(CFLAGS).encode()).hexdigest()[:16]
     return _cache_dir() / f"fixed_order_gemm-{digest}.so"
 
 
@@ -74,16 +74,13 @@ def build_library() -> Path:
         raise TactilepipeError("the portable kernels compile a small C library on first use, and no C compiler "
                                "was found (install gcc, or set CC); or use kernels: native")
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.stem, suffix=".tmp.so")
-    os.close(fd)
-    try:
-        proc = subprocess.run([cc, *CFLAGS, "-o", tmp, str(SOURCE), "-lm"], capture_output=True, text=True)
+    with tempfile.TemporaryDirectory(dir=path.parent, prefix=f".{path.stem}-") as tmp:
+        src, lib = Path(tmp) / "fixed_order_gemm.c", Path(tmp) / path.name
+        src.write_text(SOURCE)
+        proc = subprocess.run([cc, *CFLAGS, "-o", str(lib), str(src), "-lm"], capture_output=True, text=True)
         if proc.returncode:
-            raise TactilepipeError(f"compiling {SOURCE.name} with {cc} failed: {proc.stderr.strip()[:500]}")
-        os.replace(tmp, path)          # atomic: a concurrent job sees the old state or the whole library
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+            raise TactilepipeError(f"compiling the fixed-order kernels with {cc} failed: {proc.stderr.strip()[:500]}")
+        os.replace(lib, path)          # atomic: a concurrent job sees no library or the whole of it
     return path
 
 

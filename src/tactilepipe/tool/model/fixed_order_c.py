@@ -1,4 +1,11 @@
-/* Fixed-order single-precision matrix product for the portable kernels (tool/model/fixed_order.py).
+"""The C source of the fixed-order matrix product (fixed_order.py compiles it on first use).
+
+It lives in a Python module so that it is part of the import closure of every stage that trains or
+predicts: editing it changes those stages' code fingerprints and re-runs them, as editing any of
+their Python modules does (pipeline/codedeps.py).
+"""
+
+SOURCE = r"""/* Fixed-order single-precision matrix product for the portable kernels (tool/model/fixed_order.py).
 
    C[i,j] = fma(A[i,K-1], B[K-1,j], ... fma(A[i,1], B[1,j], fma(A[i,0], B[0,j], 0)))
 
@@ -143,3 +150,4 @@ void fo_gemm_reference(long m, long n, long k, const float *a, long sam, long sa
             c[i * scm + j * scn] = acc;
         }
 }
+"""
