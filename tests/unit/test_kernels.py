@@ -35,7 +35,7 @@ def test_a_fresh_process_gets_every_pin():
             "print(json.dumps(use_kernels('portable')))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert proc.stdout.strip() == ('{"mode": "portable", "aten_capability": "AVX2", "mkl_cbwr": "COMPATIBLE", '
-                                   '"onednn": false, "nnpack": false, "threads": 1}')
+                                   '"onednn": false, "nnpack": false, "threads": 1, "layers": "fixed-order"}')
 
 
 def test_training_refuses_portable_kernels_on_two_threads(tmp_path):

@@ -16,6 +16,9 @@ a trained model then depend on the CPU's vendor, vector width, cache sizes and t
   project has met); wider builds sum in another order. A CPU without AVX2 is refused.
 - One intra-op thread: ATen's parallel reductions and the convolution's weight gradient split
   their sums by thread.
+- The network's convolutions and linear layers on the fixed-order kernels (fixed_order.py): each
+  output element one FMA chain in a fixed order, the same bits on every CPU with AVX2 and FMA, at
+  AVX2 speed instead of MKL COMPATIBLE's SSE2.
 
 The MKL and ATen choices are read from the environment when torch loads, so ``use_kernels``
 must run before the first ``import torch`` of the process: a stage calls it first thing.
@@ -61,6 +64,8 @@ def use_kernels(mode: str) -> dict:
                 + ": run the stage in its own process (tactilepipe tool-train does)")
         os.environ.update(PORTABLE_ENV)
     import torch
+
+    from tactilepipe.tool.model import fixed_order
     if mode == "portable":
         torch.backends.mkldnn.enabled = False
         torch.backends.nnpack.set_flags(False)
@@ -68,17 +73,21 @@ def use_kernels(mode: str) -> dict:
     else:
         torch.backends.mkldnn.enabled = True
         torch.backends.nnpack.set_flags(True)
+    fixed_order.set_enabled(mode == "portable")
     return require_active(mode)
 
 
 def active_kernels() -> dict:
     """The kernel settings in force in this process (recorded with every trained model)."""
     import torch
+
+    from tactilepipe.tool.model import fixed_order
     return {"aten_capability": torch.backends.cpu.get_cpu_capability(),
             "mkl_cbwr": _mkl_branch(),
             "onednn": bool(torch.backends.mkldnn.enabled),
             "nnpack": bool(torch._C._get_nnpack_enabled()),     # torch.backends.nnpack has a setter only
-            "threads": torch.get_num_threads()}
+            "threads": torch.get_num_threads(),
+            "layers": "fixed-order" if fixed_order.enabled() else "torch"}
 
 
 def require_active(mode: str) -> dict:
@@ -98,6 +107,8 @@ def require_active(mode: str) -> dict:
             wrong.append("oneDNN or NNPACK is on")
         if active["threads"] != 1:
             wrong.append(f"{active['threads']} intra-op threads, not 1")
+        if active["layers"] != "fixed-order":
+            wrong.append("the convolutions and linear layers run torch's kernels, not the fixed-order ones")
         if wrong:
             raise TactilepipeError("portable kernels are not in force: " + "; ".join(wrong)
                                    + " (tool_train.kernels: native runs without these pins)")

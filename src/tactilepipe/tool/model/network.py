@@ -47,6 +47,7 @@ import torch
 from torch import nn
 
 from tactilepipe.core.errors import ArgumentError
+from tactilepipe.tool.model import fixed_order
 from tactilepipe.tool.model.variants import DEPTHS, VARIANTS
 
 MIN_IMAGE_SIZE = 8
@@ -98,9 +99,17 @@ class TrimmedConv2d(nn.Conv2d):
         th = _unused_taps(kh, ph, sh, x.shape[-2])
         tw = _unused_taps(kw, pw, sw, x.shape[-1])
         if th == 0 and tw == 0:
-            return super().forward(x)
+            return fixed_order.conv2d(x, self.weight, self.bias, self.stride, self.padding, self.groups)
         weight = _CentreTaps.apply(self.weight, th, tw)
-        return nn.functional.conv2d(x, weight, self.bias, self.stride, (ph - th, pw - tw), 1, self.groups)
+        return fixed_order.conv2d(x, weight, self.bias, self.stride, (ph - th, pw - tw), self.groups)
+
+
+class Linear(nn.Linear):
+    """nn.Linear that takes the fixed-order kernels while they are enabled (tool/model/fixed_order.py),
+    as every convolution here does through TrimmedConv2d."""
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return fixed_order.linear(x, self.weight, self.bias)
 
 
 class GAM(nn.Module):
@@ -111,7 +120,7 @@ class GAM(nn.Module):
         super().__init__()
         self.channel_gate = channel_gate
         hidden = channels // rate
-        self.channel = nn.Sequential(nn.Linear(channels, hidden), nn.ReLU(inplace=True), nn.Linear(hidden, channels))
+        self.channel = nn.Sequential(Linear(channels, hidden), nn.ReLU(inplace=True), Linear(hidden, channels))
         self.spatial = nn.Sequential(
             TrimmedConv2d(channels, hidden, 7, padding=3), nn.BatchNorm2d(hidden), nn.ReLU(inplace=True),
             TrimmedConv2d(hidden, channels, 7, padding=3), nn.BatchNorm2d(channels))
@@ -161,11 +170,11 @@ class Bottleneck(nn.Module):
 
     def __init__(self, inplanes: int, planes: int, stride: int = 1):
         super().__init__()
-        self.conv1 = nn.Conv2d(inplanes, planes, 1, bias=False)
+        self.conv1 = TrimmedConv2d(inplanes, planes, 1, bias=False)
         self.bn1 = nn.BatchNorm2d(planes)
         self.conv2 = TrimmedConv2d(planes, planes, 3, stride, 1, bias=False)   # stride on the 3x3 (v1.5)
         self.bn2 = nn.BatchNorm2d(planes)
-        self.conv3 = nn.Conv2d(planes, planes * self.expansion, 1, bias=False)
+        self.conv3 = TrimmedConv2d(planes, planes * self.expansion, 1, bias=False)
         self.bn3 = nn.BatchNorm2d(planes * self.expansion)
         self.relu = nn.ReLU(inplace=True)
         self.downsample = _downsample(inplanes, planes * self.expansion, stride)
@@ -181,7 +190,7 @@ class Bottleneck(nn.Module):
 def _downsample(inplanes: int, outplanes: int, stride: int) -> nn.Module | None:
     if stride == 1 and inplanes == outplanes:
         return None
-    return nn.Sequential(nn.Conv2d(inplanes, outplanes, 1, stride, bias=False), nn.BatchNorm2d(outplanes))
+    return nn.Sequential(TrimmedConv2d(inplanes, outplanes, 1, stride, bias=False), nn.BatchNorm2d(outplanes))
 
 
 class ResNetRegressor(nn.Module):
@@ -223,8 +232,8 @@ class ToolForceNet(nn.Module):
                            else nn.Identity())
         self.regressor = ResNetRegressor(fused, depth, width)
         f = self.regressor.out_features
-        self.head = nn.Sequential(nn.Linear(f, 16 * width), nn.ReLU(inplace=True), nn.Linear(16 * width, 8 * width),
-                                  nn.ReLU(inplace=True), nn.Linear(8 * width, 1))
+        self.head = nn.Sequential(Linear(f, 16 * width), nn.ReLU(inplace=True), Linear(16 * width, 8 * width),
+                                  nn.ReLU(inplace=True), Linear(8 * width, 1))
         _kaiming_init(self)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
