@@ -1,17 +1,21 @@
 """The tool models' bytes travel: the smoke build's runs equal results/portability.json on this
 machine (a new real machine kind is added to it); within one machine, capped instruction sets and
 other thread counts train the same bytes with portable kernels but not with native ones, so the
-comparison can fail. An emulated kind is recorded only with the recorded bytes."""
+comparison can fail; and under QEMU, as an Intel Haswell and an AMD EPYC-Rome (AVX2, no AVX-512),
+the full model retrained with portable kernels is the recorded bytes (the two emulated kinds are
+recorded), while native kernels under the same emulation give others."""
 
 from __future__ import annotations
 
 import hashlib
 import json
+import resource
 import subprocess
 from pathlib import Path
 
 import pytest
 
+from support.emulation import QEMU_CPUS, emulated_kind, emulator, require_qemu, under
 from support.project import BIN, ENV, REPO
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.tool.report import portability
@@ -73,7 +77,7 @@ def test_an_emulated_kind_is_recorded_only_with_the_recorded_bytes(smoke_build: 
 def _retrain(build: Path, out: Path, kernels: str, env: dict, num_threads: int = 1,
              prefix: tuple[str, ...] = ()) -> dict:
     """The digests of the weights and predictions of the smoke build's full model on its trial split
-    trained again by the real stage under ``env`` (and ``prefix``: an
+    (the record's EMULATED_RUN), trained again by the real stage under ``env`` (and ``prefix``: an
     emulator's command)."""
     override = {"tool_train": {"kernels": kernels, "num_threads": num_threads}}
     cmd = [*prefix, str(BIN / "tactilepipe"), "tool-train", "--scale", "smoke", "--override", json.dumps(override),
@@ -156,3 +160,33 @@ def test_portable_predictions_are_the_same_on_emulated_cpus(smoke_build: Path):
         assert _predict(smoke_build, "portable", env)[0] == base, f"portable predict moved with {name} ({env})"
     assert "native kernels" in _predict(smoke_build, "native", {})[1]
 
+
+EMULATED_RUN = "tool_normal/full"       # the subset of the smoke runs retrained under QEMU: 20-45 s each there
+
+
+def _cpu_seconds() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+@pytest.mark.slow
+def test_emulated_intel_and_amd_cpus_train_the_recorded_bytes(smoke_build: Path, tmp_path: Path):
+    qemu = require_qemu()
+    recorded = json.loads(RECORD.read_text())["runs"][EMULATED_RUN]
+    inherited = {k: v for k, v in ENV.items() if k not in EMULATED_VARIABLES}
+    for cpu in QEMU_CPUS:
+        start = _cpu_seconds()
+        kind = emulated_kind(qemu, cpu, {**inherited, "PYTHONPATH": str(smoke_build / "src")})
+        # the emulation presents another CPU than any real kind recorded: AVX2 and FMA, no AVX-512
+        assert {"avx2", "fma"} <= set(kind["vector_extensions"]) and "avx512f" not in kind["vector_extensions"], kind
+        out = tmp_path / f"portable {cpu}"
+        runs = {EMULATED_RUN: _retrain(smoke_build, out, "portable", {}, prefix=tuple(under(qemu, cpu)))}
+        kind["torch_cpu_capability"] = json.loads((out / "eval.json").read_text())["kernels"]["aten_capability"]
+        notes = portability.check_emulated(smoke_build / "results", RECORD, runs, kind, emulator(qemu, cpu))
+        native = _retrain(smoke_build, tmp_path / f"native {cpu}", "native", {}, prefix=tuple(under(qemu, cpu)))
+        assert native["weights"] != recorded["weights"], \
+            f"native kernels under {cpu} gave the recorded bytes: this emulation cannot tell kernels apart"
+        print(f"{cpu}: {notes[0]}; native weights {native['weights'][:12]}; {_cpu_seconds() - start:.0f} CPU-s")
+    machines = json.loads(RECORD.read_text())["machines"]
+    emulated = {m["kind"]["vendor"] for m in machines if m["execution"] == "emulated" and EMULATED_RUN in m["runs"]}
+    assert emulated >= {"GenuineIntel", "AuthenticAMD"}, machines
