@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from support.project import BIN, ENV, REPO
+from support.project import BIN, ENV, REPO, SMOKE, results
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.tool.report import portability
 
@@ -20,7 +20,7 @@ RECORD = REPO / "results" / "portability.json"
 
 
 def test_the_smoke_runs_are_the_recorded_bytes_on_this_machine(smoke_build: Path):
-    notes = portability.check(smoke_build / "results", RECORD)      # raises, naming runs and CPUs, on a difference
+    notes = portability.check(results(smoke_build), RECORD)      # raises, naming runs and CPUs, on a difference
     record = json.loads(RECORD.read_text())
     assert any(m["kind"] == portability.machine_kind() for m in record["machines"])
     assert len(record["runs"]) >= 24 and "runs identical to the record" in notes[0]
@@ -33,7 +33,7 @@ def test_a_changed_run_is_named_with_both_machines(smoke_build: Path, tmp_path: 
     record["runs"]["tool_shear/no_ref"]["predictions"] = "0" * 64
     (tmp_path / "r.json").write_text(json.dumps(record))
     with pytest.raises(TactilepipeError) as err:
-        portability.check(smoke_build / "results", tmp_path / "r.json")
+        portability.check(results(smoke_build), tmp_path / "r.json")
     msg = str(err.value)
     assert "tool_shear/no_ref: predictions differ" in msg and "Other CPU" in msg
     assert portability.describe(portability.machine_kind()) in msg
@@ -44,7 +44,7 @@ def test_a_changed_run_is_named_with_both_machines(smoke_build: Path, tmp_path: 
     record["recipe"]["parts"]["tool_normal"]["params"]["seed"] = 1
     (tmp_path / "r.json").write_text(json.dumps(record))
     with pytest.raises(TactilepipeError, match="recorded for another recipe .*tool_normal: params"):
-        portability.check(smoke_build / "results", tmp_path / "r.json")
+        portability.check(results(smoke_build), tmp_path / "r.json")
 
 
 def _train(build: Path, out: Path, kernels: str, env: dict, num_threads: int = 1) -> str:
@@ -52,8 +52,8 @@ def _train(build: Path, out: Path, kernels: str, env: dict, num_threads: int = 1
     trained again by the real stage under ``env``."""
     override = {"tool_train": {"kernels": kernels, "num_threads": num_threads}}
     cmd = [str(BIN / "tactilepipe"), "tool-train", "--scale", "smoke", "--override", json.dumps(override),
-           "--scene", "tool_normal", "--variant", "full", "--data-dir", "results/tool_normal/data",
-           "--split", "results/tool_normal/splits/trial.json", "--depth", "18", "--image-size", "16",
+           "--scene", "tool_normal", "--variant", "full", "--data-dir", f"{SMOKE}/tool_normal/data",
+           "--split", f"{SMOKE}/tool_normal/splits/trial.json", "--depth", "18", "--image-size", "16",
            "--out-dir", str(out), "--quiet"]
     inherited = {k: v for k, v in ENV.items() if k not in EMULATED_VARIABLES}    # the caller's shell emulates nothing
     proc = subprocess.run(cmd, cwd=build, capture_output=True, text=True,
@@ -94,7 +94,7 @@ def test_portable_kernels_refuse_more_than_one_thread(smoke_build: Path, tmp_pat
     override = {"tool_train": {"kernels": "portable", "num_threads": 2}}
     proc = subprocess.run([str(BIN / "tactilepipe"), "tool-train", "--scale", "smoke", "--override",
                            json.dumps(override), "--scene", "tool_normal", "--variant", "full",
-                           "--data-dir", "results/tool_normal/data", "--split", "results/tool_normal/splits/trial.json",
+                           "--data-dir", f"{SMOKE}/tool_normal/data", "--split", f"{SMOKE}/tool_normal/splits/trial.json",
                            "--depth", "18", "--image-size", "16", "--out-dir", str(tmp_path / "o"), "--quiet"],
                           cwd=smoke_build, capture_output=True, text=True,
                           env={**ENV, "PYTHONPATH": str(smoke_build / "src")})
@@ -107,7 +107,7 @@ def _predict(build: Path, kernels: str, env: dict) -> tuple[list[str], str]:
     and its summary line."""
     trial = next(p for p in sorted((build / "raw/tool/sim-smoke").iterdir()) if p.name.endswith("normal00"))
     cmd = [str(BIN / "tactilepipe"), "predict", "--scale", "smoke", "--override",
-           json.dumps({"predict": {"kernels": kernels}}), "--checkpoint", "results/tool_normal/models/full/best.pt",
+           json.dumps({"predict": {"kernels": kernels}}), "--checkpoint", f"{SMOKE}/tool_normal/models/full/best.pt",
            "--trial", str(trial)]
     inherited = {k: v for k, v in ENV.items() if k not in EMULATED_VARIABLES}
     proc = subprocess.run(cmd, cwd=build, capture_output=True, text=True,

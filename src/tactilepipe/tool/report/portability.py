@@ -63,7 +63,7 @@ def run_digests(results: Path) -> dict[str, dict]:
             runs[f"{scene}/{run.name}"] = {"weights": weights_digest(run / "best.pt"),
                                           "predictions": predictions_digest(run / "predictions.parquet")}
     if not runs:
-        raise InputError(results, "no trained tool runs (results/<scene>/models/<run>/best.pt): build the smoke "
+        raise InputError(results, "no trained tool runs (results/<build>/<scene>/models/<run>/best.pt): build the smoke "
                                   "scale first (make smoke)")
     return runs
 
