@@ -21,7 +21,7 @@ run: $(STAMP)  ## rebuild all results of params.yaml's scenes at its scale
 smoke: $(STAMP)  ## the whole pipeline at the smoke scale (a few minutes; docs/benchmarks.md)
 	PATH=$(CURDIR)/$(BIN):$$PATH $(SNAKEMAKE) --config scale=smoke
 
-regimes: $(STAMP)  ## Table 1 under each grasp regime (results/volume_regimes; SCALE=smoke for a quick one)
+regimes: $(STAMP)  ## Table 1 under each grasp regime (results/<build>/volume_regimes; SCALE=smoke for a quick one)
 	PATH=$(CURDIR)/$(BIN):$$PATH $(SNAKEMAKE) volume_regimes $(if $(SCALE),--config scale=$(SCALE))
 
 # Study 000 on its own data (docs/reproduce_study_000.md): opt-in, in studies/000/, needs the network once
@@ -63,5 +63,5 @@ dvc.yaml: $(STAMP)  ## regenerate dvc.yaml from the Snakemake graph, and studies
 schema: $(STAMP)  ## regenerate params.yaml's JSON schema from the parameter models (run after editing src/tactilepipe/core/parameters/)
 	$(BIN)/python workflow/scripts/params_schema.py
 
-clean-results:  ## remove generated results (raw recordings stay)
-	rm -rf results/volume results/volume_regimes results/drift results/logs
+clean-results:  ## remove the results of every build, or of one (BUILD=smoke); raw recordings and results/portability.json stay
+	rm -rf $(if $(BUILD),results/$(BUILD),$(wildcard results/*/))

@@ -57,15 +57,15 @@ def setup(wd: Path) -> float:
             (wd / "raw" / scene).mkdir(parents=True, exist_ok=True)
             subprocess.run(["cp", "-al", str(src), str(wd / "raw" / scene)], check=True)
     for shards in ("volume/shards/sim-default", "drift/shards/sim-default", "tool/shards/sim-default"):
-        if (REPO / "results" / shards).is_dir():
-            shutil.copytree(REPO / "results" / shards, wd / "results" / shards)     # keeps mtimes
+        if (REPO / "results/default" / shards).is_dir():
+            shutil.copytree(REPO / "results/default" / shards, wd / "results/default" / shards)     # keeps mtimes
     for scene in ("tool_normal", "tool_shear"):                       # data, splits, models, figures
-        if (REPO / "results" / scene / "metrics.json").is_file():
-            shutil.copytree(REPO / "results" / scene, wd / "results" / scene,
+        if (REPO / "results/default" / scene / "metrics.json").is_file():
+            shutil.copytree(REPO / "results/default" / scene, wd / "results/default" / scene,
                             ignore=shutil.ignore_patterns("last.pt"))
     # the rules' parameter stamps, with their times (older than the results they made)
-    if (REPO / "results/params").is_dir():
-        shutil.copytree(REPO / "results/params", wd / "results/params")
+    if (REPO / "results/default/params").is_dir():
+        shutil.copytree(REPO / "results/default/params", wd / "results/default/params")
     # Snakemake's records of how each output was made (rule, params, input checksums): without
     # them the copy is a fresh clone, and the outputs DVC re-copies from its cache while committing
     # tool_data (new mtimes) would look newer than the models and re-train them (`make pull`
@@ -116,9 +116,9 @@ def main() -> None:
                                                        f'volume_sessions: ["sim-{{scale}}", "{NEW}"]'))
         t_add = sh([str(BIN / "dvc"), "add", f"raw/volume/{NEW}"], wd)
         t_new = sh([str(BIN / "dvc"), "repro", *STAGES], wd)
-        n_shards = len(list((wd / "results/volume/shards" / NEW).glob("*.parquet")))
+        n_shards = len(list((wd / "results/default/volume/shards" / NEW).glob("*.parquet")))
         assert n_shards == n_bags, f"the new session was not taken in ({n_shards} of {n_bags} shards)"
-        shutil.rmtree(wd / "results/volume/shards")
+        shutil.rmtree(wd / "results/default/volume/shards")
         t_full = sh([str(BIN / "dvc"), "repro", "--force", "--single-item", "volume"], wd)
 
         print("\n| measurement (default scale, 2 cores) | wall time | target |")

@@ -5,11 +5,11 @@ The cameras are image sequences of a default-scale simulated pressing trial (in 
 orientation, repeated to 400 frames), played by `live` at the DIGIT's QVGA rate of 60 fps: the
 code path of a device, with only the source string different (rig/cameras.py). The load is
 bench_predict_load.py's: a second process multiplying matrices on 2 threads. The model is the
-default full model (results/tool_normal/models/full/best.pt when it exists, else a freshly built
+default full model (results/default/tool_normal/models/full/best.pt when it exists, else a freshly built
 one of the same shape: speed does not depend on the weights). Target: the camera rate in pairs
 per second, and at least 30 pairs/s under load, as `predict` gives.
 
-Usage: python benchmarks/bench_live.py [--checkpoint results/tool_normal/models/full/best.pt]
+Usage: python benchmarks/bench_live.py [--checkpoint results/default/tool_normal/models/full/best.pt]
 """
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ def live_run(checkpoint: Path, sources: dict, log: Path, loaded: bool) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--checkpoint", default=str(REPO / "results/tool_normal/models/full/best.pt"),
+    ap.add_argument("--checkpoint", default=str(REPO / "results/default/tool_normal/models/full/best.pt"),
                     help="the model to run (default: the default scene's full model, when built)")
     args = ap.parse_args()
     p = load_params(REPO / "params.yaml")

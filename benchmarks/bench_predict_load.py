@@ -3,7 +3,7 @@
 The load is another process multiplying 512 x 512 matrices with torch on 2 threads for a bounded
 time (what a training job or a second pipeline stage does to the cores). predict runs as the CLI
 does (a fresh process, so OpenMP's wait policy applies), streaming one default-scale simulated
-trial through the default full model (results/tool_normal/models/full/best.pt when it exists,
+trial through the default full model (results/default/tool_normal/models/full/best.pt when it exists,
 else a freshly initialised one of the same depth and input size: speed does not depend on the
 weights). Each setting is run with params.yaml's `predict` group and with the former behaviour
 (2 spinning threads) for comparison. Target: >= 30 pairs/s sustained under load (DIGIT's rate).
@@ -80,7 +80,7 @@ def main() -> None:
         spec = next(s for s in tsim.session_plan(p) if s.kind == "normal")
         tsim.write_session_calibration(session, p)
         tsim.write_trial(session, spec, p)
-        checkpoint = REPO / "results/tool_normal/models/full/best.pt"
+        checkpoint = REPO / "results/default/tool_normal/models/full/best.pt"
         if not checkpoint.exists():
             checkpoint = untrained_checkpoint(p, Path(tmp) / "untrained.pt")
         print(f"checkpoint: {checkpoint}\ntrial: {spec.name} ({p['simulate_tool']['frames_per_trial']} frames/finger)")

@@ -9,7 +9,7 @@
 4. `tactilepipe predict`: a recorded trial streamed pair by pair (decode, preprocess, model at
    batch 1) through the default-scale full model, in sustained frame pairs/s on 2 threads
    (target >= 30, the DIGIT frame rate used in study 000). The trained checkpoint
-   results/tool_normal/models/full/best.pt is used when it exists; otherwise a freshly
+   results/default/tool_normal/models/full/best.pt is used when it exists; otherwise a freshly
    initialised model of the same variant, depth and input size (speed does not depend on weights).
 
 Usage: python benchmarks/bench_tool.py [--trials N] [--size 64]
@@ -131,7 +131,7 @@ def main() -> None:
 
         print("\n== predict: one recorded trial streamed at batch 1 (2 threads)")
         torch.set_num_threads(2)
-        checkpoint = REPO / "results/tool_normal/models/full/best.pt"
+        checkpoint = REPO / "results/default/tool_normal/models/full/best.pt"
         if not checkpoint.exists():
             checkpoint = _untrained_checkpoint(p, Path(tmp) / "untrained.pt")
         print(f"checkpoint: {checkpoint}")

@@ -24,7 +24,7 @@ REPO = Path(__file__).resolve().parents[2]
 def study_arguments(description: str) -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=description)
     ap.add_argument("--scene", default="tool_normal", choices=sorted(TOOL_SCENES))
-    ap.add_argument("--scene-dir", type=Path, help="a built scene (default: results/<scene>)")
+    ap.add_argument("--scene-dir", type=Path, help="a built scene (default: the default build's, results/default/<scene>)")
     ap.add_argument("--variants", nargs="+", default=["no_ref"])
     return ap
 
@@ -41,7 +41,7 @@ class Scene:
 
 def load_scene(args: argparse.Namespace) -> Scene:
     params = load_params(REPO / "params.yaml", {"scale": "default"})
-    scene_dir = args.scene_dir or REPO / "results" / args.scene
+    scene_dir = args.scene_dir or REPO / "results" / "default" / args.scene
     label = scene_label(args.scene)
     data = ToolFrames(scene_dir / "data", label)
     return Scene(params["tool_train"], params["seed"], scene_dir, label, data,

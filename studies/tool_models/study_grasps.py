@@ -13,8 +13,8 @@ patience scaled up by the inverse of the kept share): a smaller set trained for 
 mix "fewer grasps" with "shorter training". The tactile-RMSE baseline is refitted on the same
 training subset, so every row compares like with like. One run prints the whole table.
 
-Needs a built scene (``snakemake --cores 2 results/tool_normal/splits/trial.json``). Usage:
-    python studies/tool_models/study_grasps.py [--scene tool_normal] [--scene-dir results/tool_normal]
+Needs a built scene (``snakemake --cores 2 results/default/tool_normal/splits/trial.json``). Usage:
+    python studies/tool_models/study_grasps.py [--scene tool_normal] [--scene-dir results/default/tool_normal]
                                       [--variants no_ref full] [--fractions 0.5 1] [--strides 2]
 About 10 minutes on 2 cores at default scale with the default arguments.
 """

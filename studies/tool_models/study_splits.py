@@ -9,7 +9,7 @@ first row reproduces the workflow's numbers. One run prints every row, then mean
 splits of MAE, R² and the margin to the baseline (paired: same test trials), and on how many splits
 the variant beats the baseline on both MAE and R².
 
-Needs a built scene's data (``snakemake --cores 2 results/tool_normal/data/samples.parquet``). Usage:
+Needs a built scene's data (``snakemake --cores 2 results/default/tool_normal/data/samples.parquet``). Usage:
     python studies/tool_models/study_splits.py [--scene tool_normal] [--variants no_ref] [--splits 5]
 About 2.5 minutes per variant and split on 2 cores at default scale (no_ref, Fz).
 """

@@ -23,7 +23,7 @@ from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.core.parameters.resources import RuleResources
 from tactilepipe.pipeline.estimate import estimate_report, forward_flops, planned_pairs, training_flops
 
-from support.project import BIN, REPO, copy_project, run
+from support.project import BIN, REPO, copy_project, results, run
 
 CLUSTER = REPO / ".ci" / "slurm-cluster"
 
@@ -41,7 +41,7 @@ def rule_blocks() -> dict[str, str]:
 def test_every_rule_that_runs_something_declares_its_resources():
     blocks = rule_blocks()
     runs = {name for name, b in blocks.items() if re.search(r"(?m)^    (shell|run|script):", b)}
-    assert runs >= {"tool_train", "simulate_tool", "volume_train", "ingest_papillarray"}
+    assert runs >= {"tool_train", "tool_simulate", "volume_train", "papillarray_ingest"}
     for name in runs:
         assert f'**rule_resources("{name}")' in blocks[name], name
     # params.yaml names exactly these rules (the schema refuses a misspelt one)
@@ -83,12 +83,12 @@ def test_estimate_report_counts_jobs_and_models_training():
     spec = {"full": ("full", "trial", 101, 224), "full_d101_s112": ("full", "trial", 101, 112)}
     gpu = {"mem_mb": 32000, "runtime": 2880, "gpu": 1}
     jobs = [("tool_train", {"scene": "tool_normal", "run": r}, gpu, 2) for r in spec] + \
-           [("ingest_tool", {"session": "sim-paper", "trial": f"t{i}"}, {"mem_mb": 4000, "runtime": 60}, 1)
+           [("tool_ingest", {"session": "sim-paper", "trial": f"t{i}"}, {"mem_mb": 4000, "runtime": 60}, 1)
             for i in range(3)]
     text = estimate_report(p, jobs, run_spec=spec.__getitem__, root=Path("/nonexistent"))
     print("\n" + text)
     row = {line.split()[0]: line.split() for line in text.splitlines() if line.split()}
-    assert row["ingest_tool"][1] == "3" and row["ingest_tool"][-2] == "3.0"     # 3 jobs x 1 core x 1 h
+    assert row["tool_ingest"][1] == "3" and row["tool_ingest"][-2] == "3.0"     # 3 jobs x 1 core x 1 h
     assert row["tool_train"][1] == "2" and row["tool_train"][-1] == "96.0"       # 2 x 1 GPU x 48 h booked
     pairs = planned_pairs(p, "tool_normal", Path("/nonexistent"))
     assert pairs == 4 * 3 * 3 * 1100                         # tools x poses x normal trials x frames
@@ -213,12 +213,12 @@ SLURM_FLAGS = [
 def comparable(wd: Path) -> dict:
     """The results that must not depend on where a job ran (no run times)."""
     out = {}
-    vm = json.loads((wd / "results/volume/metrics.json").read_text())
+    vm = json.loads((results(wd) / "volume/metrics.json").read_text())
     out["volume"] = {k: vm[k] for k in ("r2", "mu_star", "unseen_ml")}
-    dm = json.loads((wd / "results/drift/metrics.json").read_text())
+    dm = json.loads((results(wd) / "drift/metrics.json").read_text())
     out["drift"] = dm["drift_30min_n"]
     for scene in ("tool_normal", "tool_shear"):
-        for ev in sorted((wd / f"results/{scene}/models").glob("*/eval.json")):
+        for ev in sorted((results(wd) / f"{scene}/models").glob("*/eval.json")):
             e = json.loads(ev.read_text())
             out[f"{scene}/{ev.parent.name}"] = {k: e[k] for k in ("mae", "rmse", "r2", "n", "epochs", "best_epoch")}
             pred = pd.read_parquet(ev.parent / "predictions.parquet")
@@ -266,7 +266,7 @@ def test_smoke_scale_through_slurm_equals_the_local_run(slurm_cluster, smoke_bui
     stats = log[log.index("Job stats:"):]
     planned = {rule: int(n) for rule, n in re.findall(r"(?m)^(\w+)\s+(\d+)$", stats[:stats.index("total")])}
     local = set(re.findall(r"(?m)^localrule (\w+):$", log)) | {"all"}      # `all` runs no command
-    assert local == {"ingest_papillarray", "tool_split", "volume_split", "all"}, local    # the localrules
+    assert local == {"papillarray_ingest", "tool_split", "volume_split", "all"}, local    # the localrules
     assert len(submitted) == sum(n for rule, n in planned.items() if rule not in local) > 50
     slurm_logs = list((cluster / ".snakemake/slurm_logs").rglob("*.log"))
     assert {p.stem for p in slurm_logs} == set(submitted.values())

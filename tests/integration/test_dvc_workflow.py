@@ -23,12 +23,12 @@ import pytest
 import yaml
 
 from support.dvc_graph import covers, dvc_stages
-from support.project import BIN, REPO, build, copy_project, dvc, git, run, snakemake
+from support.project import BIN, REPO, SMOKE, build, copy_project, dvc, git, results, run, snakemake
 from tactilepipe.tool.scenes import TOOL_SCENES
 
 pytestmark = pytest.mark.integration
 
-STAGES = ["simulate_volume", "simulate_drift", "volume", "drift", "simulate_tool", "tool_data", "tool_models"]
+STAGES = ["volume_simulate", "drift_simulate", "volume", "drift", "tool_simulate", "tool_data", "tool_models"]
 NEW = "s2026-05-01"        # the "new recording session"
 NEW_TOOL = "t2026-05-02"   # a new tool-rig session (native layout, like real recordings)
 NEW_DRIFT = "d2026-05-03"  # a new drift experiment (bags named {unloaded,loaded}_tMM.bag)
@@ -58,7 +58,7 @@ def tracked_files(wd: Path) -> dict[str, bytes]:
     """Every file under raw/ and results/ (the logs and the resume checkpoints last.pt are not
     artefacts: not tracked, not shared)."""
     return {str(p.relative_to(wd)): p.read_bytes() for top in ("raw", "results") for p in sorted((wd / top).rglob("*"))
-            if p.is_file() and not str(p.relative_to(wd)).startswith(("results/logs/", "results/params/"))
+            if p.is_file() and not str(p.relative_to(wd)).startswith((f"{SMOKE}/logs/", f"{SMOKE}/params/"))
             and p.name not in (".gitignore", "README.md", "last.pt") and p.suffix != ".dvc"}   # last.pt: .dvcignore
 
 
@@ -93,7 +93,7 @@ def repo(tmp_path_factory) -> dict:
     # what the build made is reused: DVC keeps a stage's persistent outputs (recordings, shards,
     # trained models) and deletes the others before it runs the stage, so only those jobs re-run
     rerun = set(job_counts(out))
-    assert not rerun & {"simulate_volume", "simulate_drift", "simulate_tool", "ingest_papillarray", "ingest_tool",
+    assert not rerun & {"volume_simulate", "drift_simulate", "tool_simulate", "papillarray_ingest", "tool_ingest",
                         "tool_train"}, rerun
     # DVC re-copies outputs from its cache when it commits them (new mtimes in DVC's order); the
     # profile's input checksums keep Snakemake from re-running anything
@@ -118,7 +118,7 @@ def test_every_generated_file_is_a_declared_out(repo):
     # metrics are `cache: false`: git versions them (a clone has them without a pull)
     in_git = run(["git", "ls-files", "results"], wd).stdout.split()
     assert sorted(f for f in in_git if f.endswith("metrics.json")) == sorted(
-        f"results/{s}/metrics.json" for s in ("drift", "tool_normal", "tool_shear", "volume"))
+        f"{SMOKE}/{s}/metrics.json" for s in ("drift", "tool_normal", "tool_shear", "volume"))
     assert (wd / ".dvc/config").read_text().count("reflink,copy") == 1
 
 
@@ -129,8 +129,8 @@ def test_dvc_repro_records_every_stage_and_its_metrics(repo):
     assert lock["stages"]["tool_models"]["params"]["params.yaml"]["scale"] == "smoke"
     shown = json.dumps(repo["baseline"]["metrics"])
     for scene in ("volume", "drift", "tool_normal", "tool_shear"):
-        assert f"results/{scene}/metrics.json" in shown, scene
-    volume = json.loads((repo["wd"] / "results/volume/metrics.json").read_text())
+        assert f"{SMOKE}/{scene}/metrics.json" in shown, scene
+    volume = json.loads((results(repo["wd"]) / "volume/metrics.json").read_text())
     assert volume["scale"] == "smoke" and volume["r2"]["fy_fz"]["mean"] > 0.9
 
 
@@ -154,7 +154,7 @@ def take_in_session(repo: dict, scene: str, session: str, simulate_flags: list[s
     records = [str(Path(m).with_name(n)) for m in metrics for n in ("metrics.json", "provenance.json", "runtime.json")
                if (wd / Path(m).with_name(n)).exists()]
     git(wd, "add", "params.yaml", "dvc.lock", f"raw/{scene}/{session}.dvc", f"raw/{scene}/.gitignore", *records,
-        "results/params")
+        f"{SMOKE}/params")
     git(wd, "commit", "-q", "-m", f"new {scene} session {session}")
     dvc(wd, "push")
     return taken
@@ -164,10 +164,10 @@ def take_in_session(repo: dict, scene: str, session: str, simulate_flags: list[s
 def new_session(repo) -> dict:
     """Step 1: a new volume session recorded elsewhere is copied in, versioned and reproduced."""
     wd = repo["wd"]
-    shard_dir = wd / "results/volume/shards/sim-smoke"
+    shard_dir = results(wd) / "volume/shards/sim-smoke"
     old_shards = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in shard_dir.glob("*.parquet")}
     taken = take_in_session(repo, "volume", NEW, ["--labels"], 'volume_sessions: ["sim-{scale}"]',
-                            f'volume_sessions: ["sim-{{scale}}", "{NEW}"]', ["results/volume/metrics.json"])
+                            f'volume_sessions: ["sim-{{scale}}", "{NEW}"]', [f"{SMOKE}/volume/metrics.json"])
     n_new = len(list((wd / "raw/volume" / NEW).glob("*.bag")))
     return {**taken, "old_shards": old_shards, "n_new": n_new}
 
@@ -179,18 +179,18 @@ def test_new_session_reruns_only_the_volume_stage_and_ingests_only_new_bags(repo
         assert f"Stage '{stage}' didn't change, skipping" in out, stage
     counts = job_counts(out)
     assert new_session["n_new"] > 30
-    assert counts["ingest_papillarray"] == new_session["n_new"], counts       # only the new bags
-    assert counts["volume_dataset"] == 1 and "simulate_volume" not in counts
+    assert counts["papillarray_ingest"] == new_session["n_new"], counts       # only the new bags
+    assert counts["volume_dataset"] == 1 and "volume_simulate" not in counts
     for name, (mtime, data) in new_session["old_shards"].items():             # earlier shards untouched
-        p = wd / "results/volume/shards/sim-smoke" / name
+        p = results(wd) / "volume/shards/sim-smoke" / name
         assert p.stat().st_mtime_ns == mtime and p.read_bytes() == data, name
-    assert len(list((wd / f"results/volume/shards/{NEW}").glob("*.parquet"))) == new_session["n_new"]
+    assert len(list((results(wd) / f"volume/shards/{NEW}").glob("*.parquet"))) == new_session["n_new"]
     # the metrics diff against the last commit: the volume scene changed, nothing else
     diff = new_session["diff"]
-    assert set(diff) == {"results/volume/metrics.json", "results/volume/provenance.json"}, diff
+    assert set(diff) == {f"{SMOKE}/volume/metrics.json", f"{SMOKE}/volume/provenance.json"}, diff
     # provenance says why: the new session's content hash appears
-    assert f"sessions.raw/volume/{NEW}" in diff["results/volume/provenance.json"], diff
-    changed = diff["results/volume/metrics.json"]
+    assert f"sessions.raw/volume/{NEW}" in diff[f"{SMOKE}/volume/provenance.json"], diff
+    changed = diff[f"{SMOKE}/volume/metrics.json"]
     assert "r2.fy_fz.mean" in changed and changed["r2.fy_fz.mean"]["old"] != changed["r2.fy_fz.mean"]["new"]
     assert "r2.fy_fz.mean" in new_session["diff_md"] and "HEAD" in new_session["diff_md"]
     assert "up to date" in dvc(wd, "status").stdout.lower()
@@ -201,11 +201,11 @@ def new_tool_session(repo, new_session) -> dict:
     """Step 1 for the tool scenes: a new session of the DIGIT + Nano17 rig (its native layout:
     frames, serial log, meta.json per trial, nano17.cal) is copied in, versioned and reproduced."""
     wd = repo["wd"]
-    shard_dir = wd / "results/tool/shards/sim-smoke"
+    shard_dir = results(wd) / "tool/shards/sim-smoke"
     old_shards = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in shard_dir.glob("*.parquet")}
     taken = take_in_session(repo, "tool", NEW_TOOL, [], 'tool_sessions: ["sim-{scale}"]',
                             f'tool_sessions: ["sim-{{scale}}", "{NEW_TOOL}"]',
-                            ["results/tool_normal/metrics.json", "results/tool_shear/metrics.json"])
+                            [f"{SMOKE}/tool_normal/metrics.json", f"{SMOKE}/tool_shear/metrics.json"])
     n_new = len(list((wd / "raw/tool" / NEW_TOOL).glob("*/meta.json")))
     return {**taken, "old_shards": old_shards, "n_new": n_new}
 
@@ -217,18 +217,18 @@ def test_new_tool_session_reruns_only_the_tool_stages_and_ingests_only_new_trial
         assert f"Stage '{stage}' didn't change, skipping" in out, stage
     counts = job_counts(out)
     assert new_tool_session["n_new"] >= 12
-    assert counts["ingest_tool"] == new_tool_session["n_new"], counts          # only the new trials
+    assert counts["tool_ingest"] == new_tool_session["n_new"], counts          # only the new trials
     # every run of both scenes: 2 variants x 2 repeats, 3 tools left out in turn, 1 sweep run
-    assert counts["tool_dataset"] == 2 and counts["tool_train"] == 2 * (2 * 2 + 3 + 1) and "simulate_tool" not in counts
+    assert counts["tool_dataset"] == 2 and counts["tool_train"] == 2 * (2 * 2 + 3 + 1) and "tool_simulate" not in counts
     for name, (mtime, data) in new_tool_session["old_shards"].items():         # earlier shards untouched
-        p = wd / "results/tool/shards/sim-smoke" / name
+        p = results(wd) / "tool/shards/sim-smoke" / name
         assert p.stat().st_mtime_ns == mtime and p.read_bytes() == data, name
-    assert len(list((wd / f"results/tool/shards/{NEW_TOOL}").glob("*.parquet"))) == new_tool_session["n_new"]
+    assert len(list((results(wd) / f"tool/shards/{NEW_TOOL}").glob("*.parquet"))) == new_tool_session["n_new"]
     # the metrics diff against the last commit: both tool scenes changed, nothing else
     diff = new_tool_session["diff"]
-    assert set(diff) == {f"results/{s}/{f}" for s in ("tool_normal", "tool_shear")
+    assert set(diff) == {f"{SMOKE}/{s}/{f}" for s in ("tool_normal", "tool_shear")
                          for f in ("metrics.json", "provenance.json")}, diff
-    assert any(k.startswith("full.") for k in diff["results/tool_normal/metrics.json"]), diff
+    assert any(k.startswith("full.") for k in diff[f"{SMOKE}/tool_normal/metrics.json"]), diff
     assert "up to date" in dvc(wd, "status").stdout.lower()
 
 
@@ -237,7 +237,7 @@ def new_drift_session(repo, new_tool_session) -> dict:
     """Step 1 for the drift scene: a new 30-min drift experiment is copied in and analysed instead
     of the simulated one."""
     taken = take_in_session(repo, "drift", NEW_DRIFT, [], 'drift_session: "sim-{scale}"',
-                            f'drift_session: "{NEW_DRIFT}"', ["results/drift/metrics.json"])
+                            f'drift_session: "{NEW_DRIFT}"', [f"{SMOKE}/drift/metrics.json"])
     n_new = len(list((repo["wd"] / "raw/drift" / NEW_DRIFT).glob("*.bag")))
     return {**taken, "n_new": n_new}
 
@@ -247,12 +247,12 @@ def test_new_drift_session_reruns_only_the_drift_stage(repo, new_drift_session):
     assert ran_stages(out) == {"drift"}, out[-3000:]
     counts = job_counts(out)
     assert new_drift_session["n_new"] >= 7
-    assert counts["ingest_papillarray"] == new_drift_session["n_new"], counts
-    assert counts["drift_report"] == 1 and "simulate_drift" not in counts
-    assert len(list((wd / f"results/drift/shards/{NEW_DRIFT}").glob("*.parquet"))) == new_drift_session["n_new"]
+    assert counts["papillarray_ingest"] == new_drift_session["n_new"], counts
+    assert counts["drift_report"] == 1 and "drift_simulate" not in counts
+    assert len(list((results(wd) / f"drift/shards/{NEW_DRIFT}").glob("*.parquet"))) == new_drift_session["n_new"]
     diff = new_drift_session["diff"]
-    assert set(diff) == {"results/drift/metrics.json", "results/drift/provenance.json"}, diff
-    assert any(k.startswith("drift_30min_n") for k in diff["results/drift/metrics.json"]), diff
+    assert set(diff) == {f"{SMOKE}/drift/metrics.json", f"{SMOKE}/drift/provenance.json"}, diff
+    assert any(k.startswith("drift_30min_n") for k in diff[f"{SMOKE}/drift/metrics.json"]), diff
     assert "up to date" in dvc(wd, "status").stdout.lower()
 
 
@@ -263,12 +263,12 @@ def test_experiments_rerun_only_the_stages_of_the_changed_params(repo, new_sessi
                   "-S", "tool_train.variants=[full]")
     assert ran_stages(out) == {"volume", "tool_models"}, out[-3000:]
     counts = job_counts(out)
-    assert "ingest_papillarray" not in counts and "ingest_tool" not in counts and "tool_dataset" not in counts
+    assert "papillarray_ingest" not in counts and "tool_ingest" not in counts and "tool_dataset" not in counts
     assert "tool_train" not in counts and counts["tool_model_report"] == 2, counts
     for scene in ("tool_normal", "tool_shear"):
-        m = json.loads((wd / f"results/{scene}/metrics.json").read_text())
+        m = json.loads((results(wd) / f"{scene}/metrics.json").read_text())
         assert "full" in m and "no_ref" not in m, scene
-        orderings = (wd / f"results/{scene}/tables/paper_orderings.md").read_text()   # none with one variant
+        orderings = (results(wd) / f"{scene}/tables/paper_orderings.md").read_text()   # none with one variant
         assert "none: no ordering is between two of full" in orderings and m["paper_orderings"] == [], scene
     params = json.loads(dvc(wd, "params", "diff", "--json").stdout)["params.yaml"]
     assert (params["baseline.mu_max"]["old"], params["baseline.mu_max"]["new"]) == (0.4, 0.35)
@@ -278,7 +278,7 @@ def test_experiments_rerun_only_the_stages_of_the_changed_params(repo, new_sessi
     assert "mu-variants" in show and "baseline.mu_max" in show and "r2.baseline.mean" in show, show[:2000]
     exp_diff = json.loads(dvc(wd, "exp", "diff", "HEAD", "mu-variants", "--json").stdout)
     assert exp_diff["params"]["params.yaml"]["baseline.mu_max"]["new"] == 0.35
-    assert "results/volume/metrics.json" in exp_diff["metrics"]
+    assert f"{SMOKE}/volume/metrics.json" in exp_diff["metrics"]
     # back to the committed state (the experiment stays in `dvc exp show`); Snakemake's records are
     # the experiment's until the restored results are marked current, once DVC has checked them
     git(wd, "checkout", "--", ".")
@@ -321,8 +321,8 @@ def test_push_clone_pull_is_byte_identical_and_snakemake_has_nothing_to_do(repo,
     dvc(wd, "push")
     assert any(repo["remote"].rglob("*"))
     run(["git", "clone", "-q", str(wd), str(clone)], repo["root"])
-    assert not (clone / "raw/volume/sim-smoke").exists() and not (clone / "results/volume/dataset.parquet").exists()
-    assert (clone / "results/volume/metrics.json").exists()             # metrics come with git
+    assert not (clone / "raw/volume/sim-smoke").exists() and not (results(clone) / "volume/dataset.parquet").exists()
+    assert (results(clone) / "volume/metrics.json").exists()             # metrics come with git
     dvc(clone, "pull")
     ours, theirs = tracked_files(wd), tracked_files(clone)
     assert sorted(theirs) == sorted(ours)
@@ -392,22 +392,22 @@ def test_a_parameter_change_reruns_its_rules_without_snakemake_records(repo, new
 
 # the drift scene analyses the real session taken in above, so its simulator is no job of the
 # default target (its DVC stage still re-runs: it is one of dvc.yaml's stages)
-VOLUME_ALL = {"simulate_volume", "ingest_papillarray", "volume_dataset", "volume_split",
+VOLUME_ALL = {"volume_simulate", "papillarray_ingest", "volume_dataset", "volume_split",
               "volume_train", "volume_gridsearch", "volume_baseline", "volume_report", "drift_report"}
-TOOL_DATA_ON = {"ingest_tool", "tool_clock_figure", "tool_dataset", "tool_split", "tool_data_report", "tool_train",
+TOOL_DATA_ON = {"tool_ingest", "tool_clock_figure", "tool_dataset", "tool_split", "tool_data_report", "tool_train",
                 "tool_model_report"}
 EDITS = [   # (module, snakemake rules planned, DVC stages out of date, an output the edit must rewrite)
-    ("volume/report.py", {"volume_report"}, {"volume"}, "results/volume/metrics.json"),
+    ("volume/report.py", {"volume_report"}, {"volume"}, f"{SMOKE}/volume/metrics.json"),
     # a study's CLI module is in its own stages' code only: a drift stage edit re-runs nothing else
-    ("cli/drift.py", {"drift_report"}, {"simulate_drift", "drift"}, "results/drift/fits.csv"),
+    ("cli/drift.py", {"drift_report"}, {"drift_simulate", "drift"}, f"{SMOKE}/drift/fits.csv"),
     # planned only (None: no repro, which the cases above show for both kinds of module; these
     # would re-run what they did or whole scenes)
     ("drift/analyse.py", {"drift_report"}, {"drift"}, None),
     ("tool/model/network.py", {"tool_train", "tool_model_report"}, {"tool_models"}, None),
     ("tool/data/ingest.py", TOOL_DATA_ON, {"tool_data", "tool_models"}, None),
     # the drift simulator shares the pillar physics (papillarray/physics.py), not the lift simulator
-    ("volume/simulate.py", VOLUME_ALL - {"drift_report"}, {"simulate_volume", "volume"}, None),
-    ("papillarray/messages.py", VOLUME_ALL, {"simulate_volume", "simulate_drift", "volume", "drift"}, None),
+    ("volume/simulate.py", VOLUME_ALL - {"drift_report"}, {"volume_simulate", "volume"}, None),
+    ("papillarray/messages.py", VOLUME_ALL, {"volume_simulate", "drift_simulate", "volume", "drift"}, None),
 ]
 
 
@@ -458,5 +458,5 @@ def test_a_module_rewritten_with_the_same_text_reruns_nothing(repo, new_session)
     wd = repo["wd"]
     path = wd / "src/tactilepipe/tool/model/network.py"
     path.write_text(path.read_text())
-    assert path.stat().st_mtime_ns > (wd / "results/tool_normal/metrics.json").stat().st_mtime_ns
+    assert path.stat().st_mtime_ns > (results(wd) / "tool_normal/metrics.json").stat().st_mtime_ns
     assert _planned_rules(wd) == set() and _stale_stages(wd) == set()

@@ -28,16 +28,16 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from support.project import BIN, ENV, copy_project
+from support.project import BIN, ENV, SMOKE, copy_project, results
 
 pytestmark = pytest.mark.integration
 
 PROFILE = ["--workflow-profile", "workflow/profiles/default"]       # as `make run` passes it
 CONFIG = ["--config", "scale=smoke", "scenes=[tool_normal]"]
-DATA = "results/tool_normal/data/samples.parquet"
-MODEL_DIR = "results/tool_normal/models/full"
+DATA = f"{SMOKE}/tool_normal/data/samples.parquet"
+MODEL_DIR = f"{SMOKE}/tool_normal/models/full"
 MODEL = f"{MODEL_DIR}/eval.json"
-SHARDS = "results/tool/shards/sim-smoke"
+SHARDS = f"{SMOKE}/tool/shards/sim-smoke"
 LOCKED = "Directory cannot be locked"
 # eval.json fields that measure the machine, not the model
 TIMING_FIELDS = {"train_s", "latency_ms", "predict_s"}
@@ -119,7 +119,7 @@ def assert_same_data(wd: Path, reference: Path) -> None:
     for name in ref_shards:
         assert sha(wd / SHARDS / name) == sha(reference / SHARDS / name), name
     for name in ("samples.parquet", "frames.npy", "references.npy", "qc.json"):
-        assert sha(wd / "results/tool_normal/data" / name) == sha(reference / "results/tool_normal/data" / name), name
+        assert sha(results(wd) / "tool_normal/data" / name) == sha(results(reference) / "tool_normal/data" / name), name
 
 
 @pytest.fixture(scope="module")
@@ -141,7 +141,7 @@ def test_sigkill_during_ingest_then_rerun_equals_uninterrupted(reference, tmp_pa
         # done and a third ingest job has started
         if shards.is_dir() and any(p.name.endswith(".tmp") for p in shards.iterdir()):
             return "temporary"
-        logs = wd / "results/logs/ingest_tool/sim-smoke"
+        logs = results(wd) / "logs/tool_ingest/sim-smoke"
         started = len(list(logs.glob("*.log"))) if logs.is_dir() else 0
         return "started" if len(list(shards.glob("*.parquet"))) >= 2 and started >= 3 else None
 
@@ -178,12 +178,12 @@ def test_sigkill_during_training_then_rerun_equals_uninterrupted(reference, tmp_
 
 
 def test_second_snakemake_in_the_same_folder_is_refused(reference, tmp_path):
-    wd = clone(reference, tmp_path / "wd", drop=["results/tool", "results/tool_normal/data", "results/logs"])
+    wd = clone(reference, tmp_path / "wd", drop=[f"{SMOKE}/tool", f"{SMOKE}/tool_normal/data", f"{SMOKE}/logs"])
     first = start(wd, *CONFIG, "--", DATA)
     try:
         # the first run holds its lock and is running an ingest job
         wait_for(lambda: list((wd / ".snakemake/locks").glob("*.lock"))
-                 and (wd / "results/logs/ingest_tool").is_dir(), first, wd)
+                 and (results(wd) / "logs/tool_ingest").is_dir(), first, wd)
         # paused while the second one starts: on a loaded machine the first could otherwise finish
         # (and release its lock) before the second has built its DAG, and the second would succeed
         os.killpg(first.pid, signal.SIGSTOP)

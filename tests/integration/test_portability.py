@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from support.emulation import QEMU_CPUS, emulated_kind, emulator, require_qemu, under
-from support.project import BIN, ENV, REPO
+from support.project import BIN, ENV, REPO, SMOKE, results
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.tool.report import portability
 
@@ -24,7 +24,7 @@ RECORD = REPO / "results" / "portability.json"
 
 
 def test_the_smoke_runs_are_the_recorded_bytes_on_this_machine(smoke_build: Path):
-    notes = portability.check(smoke_build / "results", RECORD)      # raises, naming runs and CPUs, on a difference
+    notes = portability.check(results(smoke_build), RECORD)      # raises, naming runs and CPUs, on a difference
     record = json.loads(RECORD.read_text())
     assert any(m["kind"] == portability.machine_kind() and m["execution"] == "real" for m in record["machines"])
     assert len(record["runs"]) >= 24 and "runs identical to the record" in notes[0]
@@ -37,7 +37,7 @@ def test_a_changed_run_is_named_with_both_machines(smoke_build: Path, tmp_path: 
     record["runs"]["tool_shear/no_ref"]["predictions"] = "0" * 64
     (tmp_path / "r.json").write_text(json.dumps(record))
     with pytest.raises(TactilepipeError) as err:
-        portability.check(smoke_build / "results", tmp_path / "r.json")
+        portability.check(results(smoke_build), tmp_path / "r.json")
     msg = str(err.value)
     assert "tool_shear/no_ref: predictions differ" in msg and "Other CPU" in msg
     assert portability.describe(portability.machine_kind()) in msg
@@ -48,7 +48,7 @@ def test_a_changed_run_is_named_with_both_machines(smoke_build: Path, tmp_path: 
     record["recipe"]["parts"]["tool_normal"]["params"]["seed"] = 1
     (tmp_path / "r.json").write_text(json.dumps(record))
     with pytest.raises(TactilepipeError, match="recorded for another recipe .*tool_normal: params"):
-        portability.check(smoke_build / "results", tmp_path / "r.json")
+        portability.check(results(smoke_build), tmp_path / "r.json")
 
 
 def test_an_emulated_kind_is_recorded_only_with_the_recorded_bytes(smoke_build: Path, tmp_path: Path):
@@ -58,20 +58,20 @@ def test_an_emulated_kind_is_recorded_only_with_the_recorded_bytes(smoke_build: 
     qemu = {"program": "qemu-x86_64", "version": "7.2.22", "cpu": "Haswell-v4"}
     wrong = {"tool_normal/full": {**record["runs"]["tool_normal/full"], "weights": "0" * 64}}
     with pytest.raises(TactilepipeError, match="tool_normal/full: weights differ") as err:
-        portability.check_emulated(smoke_build / "results", tmp_path / "r.json", wrong, kind, qemu)
+        portability.check_emulated(results(smoke_build), tmp_path / "r.json", wrong, kind, qemu)
     assert "Emulated CPU" in str(err.value) and "emulated by qemu-x86_64 7.2.22 -cpu Haswell-v4" in str(err.value)
     assert json.loads((tmp_path / "r.json").read_text())["machines"] == record["machines"]     # nothing added
 
     right = {"tool_normal/full": record["runs"]["tool_normal/full"]}
-    assert "added" in portability.check_emulated(smoke_build / "results", tmp_path / "r.json", right, kind, qemu)[0]
+    assert "added" in portability.check_emulated(results(smoke_build), tmp_path / "r.json", right, kind, qemu)[0]
     added = json.loads((tmp_path / "r.json").read_text())["machines"][-1]
     assert added["execution"] == "emulated" and added["emulator"] == qemu and added["runs"] == ["tool_normal/full"]
-    assert "is listed" in portability.check_emulated(smoke_build / "results", tmp_path / "r.json", right, kind, qemu)[0]
+    assert "is listed" in portability.check_emulated(results(smoke_build), tmp_path / "r.json", right, kind, qemu)[0]
 
     record["machines"][0].pop("execution")                      # a record must say how each kind was met
     (tmp_path / "r.json").write_text(json.dumps(record))
     with pytest.raises(TactilepipeError, match="machines.0. says neither execution"):
-        portability.check(smoke_build / "results", tmp_path / "r.json")
+        portability.check(results(smoke_build), tmp_path / "r.json")
 
 
 def _retrain(build: Path, out: Path, kernels: str, env: dict, num_threads: int = 1,
@@ -81,8 +81,8 @@ def _retrain(build: Path, out: Path, kernels: str, env: dict, num_threads: int =
     emulator's command)."""
     override = {"tool_train": {"kernels": kernels, "num_threads": num_threads}}
     cmd = [*prefix, str(BIN / "tactilepipe"), "tool-train", "--scale", "smoke", "--override", json.dumps(override),
-           "--scene", "tool_normal", "--variant", "full", "--data-dir", "results/tool_normal/data",
-           "--split", "results/tool_normal/splits/trial.json", "--depth", "18", "--image-size", "16",
+           "--scene", "tool_normal", "--variant", "full", "--data-dir", f"{SMOKE}/tool_normal/data",
+           "--split", f"{SMOKE}/tool_normal/splits/trial.json", "--depth", "18", "--image-size", "16",
            "--out-dir", str(out), "--quiet"]
     inherited = {k: v for k, v in ENV.items() if k not in EMULATED_VARIABLES}    # the caller's shell emulates nothing
     proc = subprocess.run(cmd, cwd=build, capture_output=True, text=True,
@@ -129,7 +129,7 @@ def test_portable_kernels_refuse_more_than_one_thread(smoke_build: Path, tmp_pat
     override = {"tool_train": {"kernels": "portable", "num_threads": 2}}
     proc = subprocess.run([str(BIN / "tactilepipe"), "tool-train", "--scale", "smoke", "--override",
                            json.dumps(override), "--scene", "tool_normal", "--variant", "full",
-                           "--data-dir", "results/tool_normal/data", "--split", "results/tool_normal/splits/trial.json",
+                           "--data-dir", f"{SMOKE}/tool_normal/data", "--split", f"{SMOKE}/tool_normal/splits/trial.json",
                            "--depth", "18", "--image-size", "16", "--out-dir", str(tmp_path / "o"), "--quiet"],
                           cwd=smoke_build, capture_output=True, text=True,
                           env={**ENV, "PYTHONPATH": str(smoke_build / "src")})
@@ -142,7 +142,7 @@ def _predict(build: Path, kernels: str, env: dict) -> tuple[list[str], str]:
     and its summary line."""
     trial = next(p for p in sorted((build / "raw/tool/sim-smoke").iterdir()) if p.name.endswith("normal00"))
     cmd = [str(BIN / "tactilepipe"), "predict", "--scale", "smoke", "--override",
-           json.dumps({"predict": {"kernels": kernels}}), "--checkpoint", "results/tool_normal/models/full/best.pt",
+           json.dumps({"predict": {"kernels": kernels}}), "--checkpoint", f"{SMOKE}/tool_normal/models/full/best.pt",
            "--trial", str(trial)]
     inherited = {k: v for k, v in ENV.items() if k not in EMULATED_VARIABLES}
     proc = subprocess.run(cmd, cwd=build, capture_output=True, text=True,
@@ -182,7 +182,7 @@ def test_emulated_intel_and_amd_cpus_train_the_recorded_bytes(smoke_build: Path,
         out = tmp_path / f"portable {cpu}"
         runs = {EMULATED_RUN: _retrain(smoke_build, out, "portable", {}, prefix=tuple(under(qemu, cpu)))}
         kind["torch_cpu_capability"] = json.loads((out / "eval.json").read_text())["kernels"]["aten_capability"]
-        notes = portability.check_emulated(smoke_build / "results", RECORD, runs, kind, emulator(qemu, cpu))
+        notes = portability.check_emulated(results(smoke_build), RECORD, runs, kind, emulator(qemu, cpu))
         native = _retrain(smoke_build, tmp_path / f"native {cpu}", "native", {}, prefix=tuple(under(qemu, cpu)))
         assert native["weights"] != recorded["weights"], \
             f"native kernels under {cpu} gave the recorded bytes: this emulation cannot tell kernels apart"

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from support.project import BIN, copy_project, run
+from support.project import BIN, SMOKE, copy_project, results, run
 from support.read_audit import Audit, audited_snakemake, declared_jobs, strace_available, undeclared, undeclared_code
 
 pytestmark = pytest.mark.integration
@@ -41,9 +41,9 @@ def test_every_stage_of_the_smoke_build_reads_only_declared_files(smoke_build: P
     reads, imports = audit.reads(), audit.imported()
     assert len(jobs) > 100 and all(j.command in reads and j.command in imports for j in jobs), \
         [j.rule for j in jobs if j.command not in reads or j.command not in imports][:5]
-    assert {j.rule for j in jobs} >= {"simulate_volume", "ingest_papillarray", "volume_dataset", "volume_train",
-                                      "volume_report", "simulate_drift", "drift_report", "simulate_tool",
-                                      "ingest_tool", "tool_dataset", "tool_split", "tool_train", "tool_model_report",
+    assert {j.rule for j in jobs} >= {"volume_simulate", "papillarray_ingest", "volume_dataset", "volume_train",
+                                      "volume_report", "drift_simulate", "drift_report", "tool_simulate",
+                                      "tool_ingest", "tool_dataset", "tool_split", "tool_train", "tool_model_report",
                                       "tool_data_report", "tool_clock_figure"}
     assert sum(len(files) for files in reads.values()) > 5000          # frames, bags, shards, data sets
     assert undeclared(reads, jobs) == {}
@@ -67,7 +67,7 @@ def test_the_audit_names_a_read_whose_input_a_rule_no_longer_declares(smoke_buil
     problems = undeclared(_smoke_audit(smoke_build).reads(), declared_jobs(wd, SNAKEMAKE))
     drift = [files for job, files in problems.items() if job.startswith("drift_report:")]
     assert drift and "raw/drift/sim-smoke/loaded_t05.bag" in drift[0], problems.keys()
-    ingest = {job: files for job, files in problems.items() if job.startswith("ingest_tool:")}
+    ingest = {job: files for job, files in problems.items() if job.startswith("tool_ingest:")}
     assert len(ingest) == 12 and all(files == ["raw/tool/sim-smoke/nano17.cal"] for files in ingest.values())
 
 
@@ -91,17 +91,17 @@ def test_real_session_layouts_read_only_declared_files(tmp_path: Path, smoke_par
     run(tp + ["drift-simulate", "--scale", "smoke", "--out-dir", str(wd / "raw/drift/real-drift")], wd)
     (wd / "raw/drift/real-drift/notes.txt").write_text("room at 22 C\n")   # provenance.json hashes it too
     config = ["--config", 'tool_sessions=["real-native", "real-public", "real-ros"]', "drift_session=real-drift"]
-    targets = ["results/tool/shards/real-native/t1.parquet", f"results/tool/shards/real-public/data_normal-{public[0]}.parquet",
-               "results/tool/shards/real-ros/t0.parquet", "results/drift/metrics.json"]
+    targets = [f"{SMOKE}/tool/shards/real-native/t1.parquet", f"{SMOKE}/tool/shards/real-public/data_normal-{public[0]}.parquet",
+               f"{SMOKE}/tool/shards/real-ros/t0.parquet", f"{SMOKE}/drift/metrics.json"]
     audit = audited_snakemake(wd, *targets, *config)             # --config takes every word after it
     jobs = declared_jobs(wd, [*SNAKEMAKE, *config])
     reads = audit.reads()
     ran = {j.rule for j in jobs if j.command in reads}
-    assert ran >= {"ingest_tool", "ingest_papillarray", "drift_report"}, ran
+    assert ran >= {"tool_ingest", "papillarray_ingest", "drift_report"}, ran
     read_files = set().union(*reads.values())
     assert {"raw/tool/real-native/nano17.cal", "raw/tool/real-native/t1/meta.json", "raw/tool/real-public/trials.csv",
             "raw/tool/real-ros/t0.meta.json", "raw/drift/real-drift/session.json",
             "raw/drift/real-drift/notes.txt"} <= read_files
     assert undeclared(reads, [j for j in jobs if j.command in reads]) == {}
     assert undeclared_code(audit.imported(), [j for j in jobs if j.command in reads]) == {}
-    assert json.loads((wd / "results/drift/metrics.json").read_text())
+    assert json.loads((results(wd) / "drift/metrics.json").read_text())

@@ -20,6 +20,7 @@ import torch
 
 from support.tool_data import quick_cfg
 from support.standin_rig import GARBAGE, StandInArduino, camera_sequences, write_plan
+from support.project import SMOKE, results
 from tactilepipe.core.config import load_params
 from tactilepipe.rig.cameras import from_layout
 from tactilepipe.tool.data.ingest import ingest_trial
@@ -187,10 +188,10 @@ def test_a_recorded_session_runs_through_the_pipeline_with_no_step_by_hand(rig, 
                         "--trials", "3", "--no-prompt")
             assert done.returncode == 0, done.stderr
     assert len(list_trials(session)) == 6
-    snakemake(wd, "results/tool_normal/metrics.json", "results/tool_normal/qc.md", "--config",
+    snakemake(wd, f"{SMOKE}/tool_normal/metrics.json", f"{SMOKE}/tool_normal/qc.md", "--config",
               'tool_sessions=["lab-4"]', "scenes=[tool_normal]")
-    metrics = json.loads((wd / "results/tool_normal/metrics.json").read_text())
-    qc = (wd / "results/tool_normal/qc.md").read_text()
+    metrics = json.loads((results(wd) / "tool_normal/metrics.json").read_text())
+    qc = (results(wd) / "tool_normal/qc.md").read_text()
     assert "spatula_normal_002" in qc and "screwdriver_1_normal_000" in qc
     for variant in chosen_variants(P["tool_train"]["variants"]):
         assert np.isfinite(metrics[variant]["mae"]) and metrics[variant]["over_splits"]["mae"]["n"] == 2

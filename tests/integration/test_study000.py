@@ -25,7 +25,7 @@ from tactilepipe.core.errors import InputError
 from tactilepipe.tool.formats import public_archive as pa
 from tactilepipe.tool.formats.trials import list_trials
 
-from support.project import BIN, REPO, copy_project, dvc, git, run
+from support.project import BIN, REPO, SMOKE, copy_project, dvc, git, results, run
 
 STUDY = "studies/000"
 
@@ -116,7 +116,7 @@ def test_import_unpack_ingest_train_and_published_check_run_through_dvc_repro(pr
     out = proc.stdout + proc.stderr
     assert f"no tool for {len(stand_ins['normal'])} of {len(stand_ins['normal'])} public trials" in out, out[-2000:]
     assert f"data_normal/{stand_ins['normal'][0]}" in out
-    assert not (study / "results/tool/shards").exists()
+    assert not (results(study) / "tool/shards").exists()
 
     # the user completes it (kept as written on later unpacks)
     by_name = {r["trial"]: r for r in stand_ins["rows"]}
@@ -124,39 +124,39 @@ def test_import_unpack_ingest_train_and_published_check_run_through_dvc_repro(pr
         f"data_normal/{n},{by_name[n]['tool']},{by_name[n]['orientation_deg']},{by_name[n]['insertion_mm']}\n"
         for n in stand_ins["normal"]))
     dvc(study, "repro", "protocols")
-    samples = study / "results/tool_normal/data/samples.parquet"
-    assert len(list((study / "results/tool/shards/public").glob("*.parquet"))) == len(stand_ins["normal"])
-    metrics = json.loads((study / "results/study000/metrics.json").read_text())
+    samples = results(study) / "tool_normal/data/samples.parquet"
+    assert len(list((results(study) / "tool/shards/public").glob("*.parquet"))) == len(stand_ins["normal"])
+    metrics = json.loads((results(study) / "study000/metrics.json").read_text())
     assert set(metrics) == {"public_frame", "trial", "paper"}
     assert metrics["paper"] == {"mae_n": 0.5964, "r2": 0.9743}
-    frame_split = json.loads((study / "results/tool_normal/splits/public_frame.json").read_text())
+    frame_split = json.loads((results(study) / "tool_normal/splits/public_frame.json").read_text())
     assert frame_split["leaky"] and frame_split["name"] == "public_frame"
     import pandas as pd
     labels = pd.read_parquet(samples)["normal"]
     assert frame_split["label_stats"]["max"] == pytest.approx(labels.max())     # taken before the split
     for split in ("public_frame", "trial"):
-        e = json.loads((study / f"results/tool_normal/models/full_{split}/eval.json").read_text())
+        e = json.loads((results(study) / f"tool_normal/models/full_{split}/eval.json").read_text())
         assert e["split"] == split and metrics[split]["n"] == e["n"] == len(json.loads(
-            (study / f"results/tool_normal/splits/{split}.json").read_text())["test"])
+            (results(study) / f"tool_normal/splits/{split}.json").read_text())["test"])
     # tool-evaluate on our own checkpoint gives the training run's test metrics again
-    ours = study / "results/tool_normal/models/full_trial"
+    ours = results(study) / "tool_normal/models/full_trial"
     run([str(BIN / "tactilepipe"), "tool-evaluate", "--params", "params.yaml", "--checkpoint", str(ours / "best.pt"),
-         "--scene", "tool_normal", "--data-dir", "results/tool_normal/data", "--split",
-         "results/tool_normal/splits/trial.json", "--out-dir", str(project / "again")], study)
+         "--scene", "tool_normal", "--data-dir", f"{SMOKE}/tool_normal/data", "--split",
+         f"{SMOKE}/tool_normal/splits/trial.json", "--out-dir", str(project / "again")], study)
     again, trained = (json.loads((d / "eval.json").read_text()) for d in (project / "again", ours))
     assert again["source"] == "tactilepipe" and not again["contaminated"]
     assert (again["n"], again["mae"], again["r2"]) == pytest.approx((trained["n"], trained["mae"], trained["r2"]),
                                                                     rel=1e-6)
-    table = (study / "results/study000/protocols.md").read_text()
+    table = (results(study) / "study000/protocols.md").read_text()
     assert "0.5964" in table and "0.9743" in table and "leaky" in table
 
     dvc(study, "repro", "published")
-    e = json.loads((study / "results/study000/published_normal/eval.json").read_text())
+    e = json.loads((results(study) / "study000/published_normal/eval.json").read_text())
     assert e["contaminated"] is True and e["source"] == "public" and e["frames"] == "all"
     assert e["n"] == len(labels) and e["gam_channel_gate"] == "none" and "contaminated" in e["note"]
-    assert "contaminated" in (study / "results/study000/published.md").read_text()
+    assert "contaminated" in (results(study) / "study000/published.md").read_text()
     # the default pipeline's outputs are untouched: nothing was written outside studies/000
-    assert not (project / "results/tool_normal").exists() and not (project / "raw/tool").exists()
+    assert not (results(project) / "tool_normal").exists() and not (project / "raw/tool").exists()
     proc = dvc(study, "status", "protocols", "published")
     assert "changed" not in proc.stdout, proc.stdout
     # studies/000 is a DVC project of its own: the project's stages, status and pushes never see it

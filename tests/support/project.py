@@ -13,6 +13,17 @@ BIN = Path(sys.executable).parent
 ENV = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
 
 
+# Where a build keeps its results (results/<build>/, a build named by its scale unless params.yaml
+# names it; src/tactilepipe/pipeline/layout.py). The tests build at the smoke scale: every path into a
+# test build's results goes through these, so a change of the layout is one edit here.
+SMOKE = "results/smoke"
+
+
+def results(wd: Path, build: str = "smoke") -> Path:
+    """The results folder of ``build`` in the project at ``wd``."""
+    return Path(wd) / "results" / build
+
+
 def copy_project(dest: Path, scale: str | None = None) -> Path:
     for name in ("Snakefile", "params.yaml", "dvc.yaml", ".dvcignore"):
         if (REPO / name).exists():

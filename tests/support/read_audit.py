@@ -33,7 +33,7 @@ from pathlib import Path
 SYSCALLS = "execve,open,openat,rename,renameat,renameat2,clone,clone3,fork,vfork"
 ALLOWED = {
     "params.yaml": "parameters: each stage reads only its declared keys, tracked by the rule's parameter "
-                   "stamp (results/params/<stage>.json), which is declared",
+                   "stamp (results/<build>/params/<stage>.json), which is declared",
     "src/tactilepipe/core/params.schema.json": "validation of params.yaml: it accepts or refuses, never changes a value",
 }
 ALLOWED_PREFIXES = {

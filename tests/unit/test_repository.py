@@ -53,6 +53,90 @@ def test_the_places_the_readme_promises_exist():
     assert figures and all("savefig" in f.read_text() or "save_figure" in f.read_text() for f in figures)
 
 
+# What the pages may name: every backticked `tactilepipe X`, `make X` and `snakemake ... RULE`, and
+# every backticked dotted key `group.key` of a params.yaml group. The decision records are left
+# out: they record what was run then, under the names of the time.
+DOC_PAGES = ["README.md", "tests/README.md", "results/README.md"]
+CODE_SPAN = re.compile(r"`([^`\n]+)`")
+COMMAND = re.compile(r"(?:^|[\s/])(tactilepipe|make|snakemake)((?:\s+[^\s;|&#]+)*)")
+PARAM_KEY = re.compile(r"^[a-z][a-z0-9_]*(?:\.[a-z0-9_]+)+$")
+
+
+def doc_pages():
+    pages = [REPO / p for p in DOC_PAGES] + sorted((REPO / "docs").glob("*.md"))
+    for page in pages:
+        text = page.read_text()
+        # code blocks are read as code spans line by line
+        spans = CODE_SPAN.findall(re.sub(r"```.*?```", "", text, flags=re.S))
+        for block in re.findall(r"```[a-z]*\n(.*?)```", text, flags=re.S):
+            spans += [line.split("#")[0] for line in block.splitlines()]
+        yield page.relative_to(REPO), spans
+
+
+FILE_SUFFIXES = {"py", "md", "json", "yaml", "smk", "csv", "png", "parquet", "npy", "pt", "log", "txt", "rst", "html"}
+
+
+def names_in_docs(pages=None):
+    """(page, kind, name) of every command, rule and parameter key the pages name."""
+    import yaml
+    groups = set(yaml.safe_load((REPO / "params.yaml").read_text()))
+    for page, spans in pages if pages is not None else doc_pages():
+        for span in spans:
+            for tool, rest in COMMAND.findall(span):
+                words = rest.split()
+                if tool == "tactilepipe" and words and re.fullmatch(r"[a-z][a-z0-9-]*:?", words[0]):
+                    yield page, "command", words[0].rstrip(":")      # "tactilepipe X: error ..." is X's
+                elif tool == "make" and words and re.fullmatch(r"[a-z][\w.-]*", words[0]):
+                    yield page, "make target", words[0]
+                elif tool == "snakemake":
+                    for before, word in zip(["snakemake"] + words, words):
+                        # a bare name that is not an option's value is a rule (a path or key=value is not)
+                        if re.fullmatch(r"[a-z][a-z0-9_]*", word) and not before.startswith("-"):
+                            yield page, "rule", word
+            if PARAM_KEY.match(span.strip()) and span.split(".")[0] in groups and \
+                    span.strip().rsplit(".", 1)[1] not in FILE_SUFFIXES:
+                yield page, "key", span.strip()
+
+
+def _known_names() -> dict[str, set[str]]:
+    import tactilepipe.cli.main  # noqa: F401  (declares every command)
+    from tactilepipe.cli.registry import COMMANDS
+    makefile = (REPO / "Makefile").read_text()
+    rules = {m for f in [REPO / "Snakefile", *(REPO / "workflow/rules").glob("*.smk")]
+             for m in re.findall(r"^rule (\w+):", f.read_text(), re.M)}
+    return {"command": set(COMMANDS), "make target": set(re.findall(r"^([\w.-]+):", makefile, re.M)),
+            "rule": rules}
+
+
+def _has_key(tree, key: str) -> bool:
+    node = tree
+    for part in key.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return False
+        node = node[part]
+    return True
+
+
+def test_the_commands_rules_and_keys_the_docs_name_exist():
+    import yaml
+    known = _known_names()
+    params = yaml.safe_load((REPO / "params.yaml").read_text())
+    missing = sorted({f"{page}: {kind} `{name}`" for page, kind, name in names_in_docs()
+                      if not (_has_key(params, name) if kind == "key" else name in known[kind])})
+    assert not missing, "the docs name what does not exist:\n" + "\n".join(missing)
+
+
+def test_the_docs_check_finds_a_missing_command_rule_and_key():
+    text = ("Run `tactilepipe unpack-public`, `make cleanall`, `snakemake --cores 2 simulate_tool`, "
+            "and set `tool_train.no_such_key`; `make smoke` and `tool_train.image_size` exist.")
+    found = {(kind, name) for _, kind, name in names_in_docs([("page.md", CODE_SPAN.findall(text))])}
+    assert found >= {("command", "unpack-public"), ("make target", "cleanall"), ("rule", "simulate_tool"),
+                     ("key", "tool_train.no_such_key"), ("make target", "smoke"), ("key", "tool_train.image_size")}
+    known = _known_names()
+    assert "unpack-public" not in known["command"] and "cleanall" not in known["make target"]
+    assert "simulate_tool" not in known["rule"] and "tool_simulate" in known["rule"] and "smoke" in known["make target"]
+
+
 class OtherThan(tuple):
     """Every module of tactilepipe outside the packages named."""
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import yaml
 
-from tactilepipe.pipeline import codedeps, stamps
+from tactilepipe.pipeline import codedeps, layout, stamps
 from tactilepipe.core.atomic import write_text
 from tactilepipe.core.config import changed_leaves, resolve, typed_like
 from tactilepipe.core.errors import TactilepipeError
@@ -37,6 +37,9 @@ try:
 except TactilepipeError as exc:
     raise WorkflowError(str(exc)) from None
 CLI = f"{shlex.quote(sys.executable)} -m tactilepipe"
+# Every file the workflow writes outside raw/ is under the build's folder (params.yaml `build`, by
+# default the scale's name): another scale or build never overwrites these, nor re-runs them.
+RESULTS = layout.results_root(P["build"])
 
 
 @cache
@@ -60,11 +63,15 @@ def tool_background_frame():
     return _repo_relative(background_path(P["simulate_tool"]["render"]["background"]))
 
 
-PARAM_STAMPS = "results/params"
+PARAM_STAMPS = f"{RESULTS}/params"
+# The simulators write raw/<scene>/sim-<scale>/, which every build of the scale reads: their stamps
+# belong to the scale (results/<scale>/params/), so a second build of one scale re-simulates nothing.
+SCALE_STAMPS = f"{layout.results_root(P['scale'])}/params"
+SCALE_STAGES = {"volume-simulate", "drift-simulate", "tool-simulate"}
 
 
 def param_stamp(stage):
-    """An input function giving results/params/<stage>.json: the values of the parameters the stage
+    """An input function giving results/<build>/params/<stage>.json: the values of the parameters the stage
     declares (its only way in) and of its declared graph keys, the ones the rules read to decide
     which jobs exist or what their commands say (both from its `@command` declaration). Rewritten
     only when the values change: a change then re-runs the rule by file time, also where Snakemake
@@ -83,7 +90,7 @@ def param_stamp(stage):
 def stamp_file(stage):
     """The stamp of ``stage`` as this run sees it (see param_stamp): the tracked file, written when
     its values changed, or in a dry run a scratch copy holding the new values."""
-    path = Path(PARAM_STAMPS) / f"{stage}.json"
+    path = Path(SCALE_STAMPS if stage in SCALE_STAGES else PARAM_STAMPS) / f"{stage}.json"
     text = stamps.stamp_text(stage, codedeps.stage_param_keys(stage), codedeps.stage_graph_keys(stage), P)
     old = path.read_text() if path.is_file() else None
     if old == text:
@@ -135,9 +142,9 @@ def _print_estimate_after_dry_run():
 
 atexit.register(_print_estimate_after_dry_run)
 
-LOGS = "results/logs"
-VOLUME = "results/volume"
-DRIFT = "results/drift"
+LOGS = f"{RESULTS}/logs"
+VOLUME = f"{RESULTS}/volume"
+DRIFT = f"{RESULTS}/drift"
 DRIFT_SESSION = P["drift_session"]
 
 
@@ -311,7 +318,7 @@ def tool_names(kind):
 
 
 def tool_shards(kind):
-    return [f"results/tool/shards/{s}/{name}.parquet" for s in P["tool_sessions"]
+    return [f"{RESULTS}/tool/shards/{s}/{name}.parquet" for s in P["tool_sessions"]
             for name in tool_trial_names(s) if _tool_kind(s, name) == kind]
 
 
@@ -342,7 +349,7 @@ TOOL_MODEL_TABLES = ["variants", "intervals", "differences", "paper_orderings", 
 
 def tool_clock_figures():
     """Each tool session's clock-sync QC figure (score against lag per trial, chosen lag marked)."""
-    return [f"results/tool/qc/{s}_clock_sync.png" for s in P["tool_sessions"]]
+    return [f"{RESULTS}/tool/qc/{s}_clock_sync.png" for s in P["tool_sessions"]]
 
 
 def tool_split_names(scene):
@@ -354,16 +361,16 @@ def tool_split_names(scene):
 
 def tool_data_targets(scene):
     """QC report, data figures and every split of a tool scene (no model)."""
-    return [f"results/{scene}/qc.md"] + tool_clock_figures() + \
-        [f"results/{scene}/figures/{fig}.png" for fig in TOOL_DATA_FIGURES] + \
-        [f"results/{scene}/splits/{split}.json" for split in tool_split_names(scene)]
+    return [f"{RESULTS}/{scene}/qc.md"] + tool_clock_figures() + \
+        [f"{RESULTS}/{scene}/figures/{fig}.png" for fig in TOOL_DATA_FIGURES] + \
+        [f"{RESULTS}/{scene}/splits/{split}.json" for split in tool_split_names(scene)]
 
 
 def tool_model_targets(scene):
     """Metrics, tables and figures of every trained model run of a tool scene."""
-    return [f"results/{scene}/metrics.json", f"results/{scene}/provenance.json", f"results/{scene}/runtime.json"] + \
-        [f"results/{scene}/tables/{t}.md" for t in TOOL_MODEL_TABLES] + \
-        [f"results/{scene}/figures/{fig}.png" for fig in TOOL_MODEL_FIGURES]
+    return [f"{RESULTS}/{scene}/metrics.json", f"{RESULTS}/{scene}/provenance.json", f"{RESULTS}/{scene}/runtime.json"] + \
+        [f"{RESULTS}/{scene}/tables/{t}.md" for t in TOOL_MODEL_TABLES] + \
+        [f"{RESULTS}/{scene}/figures/{fig}.png" for fig in TOOL_MODEL_FIGURES]
 
 
 def tool_targets(scene):

@@ -4,20 +4,20 @@
 # two Snakemake starts a SLURM job costs: on a cluster these run where Snakemake runs, instead of
 # queueing as one job per bag (the volume and drift sessions are most of the jobs).
 localrules:
-    ingest_papillarray,
+    papillarray_ingest,
 
 
-rule ingest_papillarray:
+rule papillarray_ingest:
     input:
         bag="raw/{scene}/{session}/{stem}.bag",
         code=stage_code("papillarray-ingest"),
         params=param_stamp("papillarray-ingest"),
     output:
-        "results/{scene}/shards/{session}/{stem}.parquet",
+        f"{RESULTS}/{{scene}}/shards/{{session}}/{{stem}}.parquet",
     wildcard_constraints:
         scene="volume|drift",
     resources:
-        **rule_resources("ingest_papillarray"),
+        **rule_resources("papillarray_ingest"),
     log:
         f"{LOGS}/ingest/{{scene}}/{{session}}/{{stem}}.log",
     shell:

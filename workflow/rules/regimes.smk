@@ -1,7 +1,7 @@
 # Study 001 under each grasp regime of the simulator (params.yaml volume_regimes), next to the
 # paper's Table 1. Not part of the default target: `make regimes` or `snakemake --cores 2 volume_regimes`.
 
-REGIMES = "results/volume_regimes"
+REGIMES = f"{RESULTS}/volume_regimes"
 
 
 rule volume_regimes:

@@ -1,7 +1,7 @@
 # Embedded default data: simulated sessions (raw/<scene>/sim-<scale>/), written as real rigs do.
 
 
-rule simulate_volume:
+rule volume_simulate:
     input:
         code=stage_code("volume-simulate"),
         params=param_stamp("volume-simulate"),
@@ -14,14 +14,14 @@ rule simulate_volume:
         out_dir=lambda w: f"raw/volume/{w.session}",
     threads: 2
     resources:
-        **rule_resources("simulate_volume"),
+        **rule_resources("volume_simulate"),
     log:
-        f"{LOGS}/simulate_volume/{{session}}.log",
+        f"{LOGS}/volume_simulate/{{session}}.log",
     shell:
         "{CLI} volume-simulate --stamp {input.params:q} --out-dir {params.out_dir:q} --labels --jobs {threads} 2> {log:q}"
 
 
-rule simulate_drift:
+rule drift_simulate:
     input:
         code=stage_code("drift-simulate"),
         params=param_stamp("drift-simulate"),
@@ -34,8 +34,8 @@ rule simulate_drift:
         out_dir=lambda w: f"raw/drift/{w.session}",
     threads: 2
     resources:
-        **rule_resources("simulate_drift"),
+        **rule_resources("drift_simulate"),
     log:
-        f"{LOGS}/simulate_drift/{{session}}.log",
+        f"{LOGS}/drift_simulate/{{session}}.log",
     shell:
         "{CLI} drift-simulate --stamp {input.params:q} --out-dir {params.out_dir:q} --jobs {threads} 2> {log:q}"

@@ -5,13 +5,13 @@
 #                       protocol) and under our trial split, beside the paper's MAE and R²
 #   study000_published  the published normal-force weights over every frame (contaminated)
 
-STUDY000 = "results/study000"
+STUDY000 = f"{RESULTS}/study000"
 STUDY000_RUNS = ["full_public_frame", "full_trial"]
 
 
 rule study000_protocols:
     input:
-        evals=expand("results/tool_normal/models/{run}/eval.json", run=STUDY000_RUNS),
+        evals=expand(f"{RESULTS}/tool_normal/models/{{run}}/eval.json", run=STUDY000_RUNS),
         code=stage_code("study000-table"),
         params=param_stamp("study000-table"),
     output:
@@ -31,7 +31,7 @@ rule study000_protocols:
 rule study000_evaluate_published:
     input:
         checkpoint="raw/downloads/best_model_normal.pth",
-        data=expand("results/tool_normal/data/{f}", f=["frames.npy", "references.npy", "samples.parquet"]),
+        data=expand(f"{RESULTS}/tool_normal/data/{{f}}", f=["frames.npy", "references.npy", "samples.parquet"]),
         code=stage_code("tool-evaluate"),
         params=param_stamp("tool-evaluate"),
     output:
@@ -46,7 +46,7 @@ rule study000_evaluate_published:
         f"{LOGS}/study000/published_normal.log",
     shell:
         "{CLI} tool-evaluate --stamp {input.params:q} --checkpoint {input.checkpoint:q} --expect best_model_normal --scene tool_normal "
-        "--data-dir results/tool_normal/data --all-frames --contaminated --out-dir {params.out_dir:q} > {log:q} 2>&1"
+        "--data-dir {RESULTS}/tool_normal/data --all-frames --contaminated --out-dir {params.out_dir:q} > {log:q} 2>&1"
 
 
 rule study000_published:

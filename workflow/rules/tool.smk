@@ -5,7 +5,7 @@
 SPLIT_NAME = "(frame|public_frame|trial|lopo)(_r[1-9][0-9]*)?|loto_[A-Za-z0-9_-]+"   # tool/data/splits.py; public_frame: study000.smk
 
 
-rule simulate_tool:
+rule tool_simulate:
     input:
         background=tool_background_frame(),
         code=stage_code("tool-simulate"),
@@ -19,38 +19,38 @@ rule simulate_tool:
         out_dir=lambda w: f"raw/tool/{w.session}",
     threads: 2
     resources:
-        **rule_resources("simulate_tool"),
+        **rule_resources("tool_simulate"),
     log:
-        f"{LOGS}/simulate_tool/{{session}}.log",
+        f"{LOGS}/tool_simulate/{{session}}.log",
     shell:
         "{CLI} tool-simulate --stamp {input.params:q} --out-dir {params.out_dir:q} --jobs {threads} 2> {log:q}"
 
 
-rule ingest_tool:
+rule tool_ingest:
     input:
         trial=tool_trial_input,
         code=stage_code("tool-ingest"),
         params=param_stamp("tool-ingest"),
     output:
-        "results/tool/shards/{session}/{trial}.parquet",
+        f"{RESULTS}/tool/shards/{{session}}/{{trial}}.parquet",
     params:
         fmt=lambda w: tool_trial_format(w.session, w.trial),
         path=lambda w: tool_trial_path(w.session, w.trial),
     resources:
-        **rule_resources("ingest_tool"),
+        **rule_resources("tool_ingest"),
     log:
-        f"{LOGS}/ingest_tool/{{session}}/{{trial}}.log",
+        f"{LOGS}/tool_ingest/{{session}}/{{trial}}.log",
     shell:
         "{CLI} tool-ingest --stamp {input.params:q} {params.path:q} --format {params.fmt} --out {output:q} > {log:q} 2>&1"
 
 
 rule tool_clock_figure:
     input:
-        shards=lambda w: [f"results/tool/shards/{w.session}/{name}.parquet" for name in tool_trial_names(w.session)],
+        shards=lambda w: [f"{RESULTS}/tool/shards/{w.session}/{name}.parquet" for name in tool_trial_names(w.session)],
         code=stage_code("tool-clock-figure"),
         params=param_stamp("tool-clock-figure"),
     output:
-        "results/tool/qc/{session}_clock_sync.png",
+        f"{RESULTS}/tool/qc/{{session}}_clock_sync.png",
     resources:
         **rule_resources("tool_clock_figure"),
     log:
@@ -65,10 +65,10 @@ rule tool_dataset:
         code=stage_code("tool-dataset"),
         params=param_stamp("tool-dataset"),
     output:
-        frames="results/{scene}/data/frames.npy",
-        references="results/{scene}/data/references.npy",
-        samples="results/{scene}/data/samples.parquet",
-        qc="results/{scene}/data/qc.json",
+        frames=f"{RESULTS}/{{scene}}/data/frames.npy",
+        references=f"{RESULTS}/{{scene}}/data/references.npy",
+        samples=f"{RESULTS}/{{scene}}/data/samples.parquet",
+        qc=f"{RESULTS}/{{scene}}/data/qc.json",
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     params:
@@ -79,7 +79,7 @@ rule tool_dataset:
         f"{LOGS}/{{scene}}/dataset.log",
     shell:
         "{CLI} tool-dataset --stamp {input.params:q} --kind {params.kind} --shards {input.shards:q} "
-        "--out-dir results/{wildcards.scene}/data 2> {log:q}"
+        "--out-dir {RESULTS}/{wildcards.scene}/data 2> {log:q}"
 
 
 # A split is a second's work on the sample table: on a cluster it runs where Snakemake runs
@@ -90,11 +90,11 @@ localrules:
 
 rule tool_split:
     input:
-        samples="results/{scene}/data/samples.parquet",
+        samples=f"{RESULTS}/{{scene}}/data/samples.parquet",
         code=stage_code("tool-split"),
         params=param_stamp("tool-split"),
     output:
-        "results/{scene}/splits/{split}.json",
+        f"{RESULTS}/{{scene}}/splits/{{split}}.json",
     wildcard_constraints:
         scene="tool_normal|tool_shear",
         split=SPLIT_NAME,
@@ -105,7 +105,7 @@ rule tool_split:
     log:
         f"{LOGS}/{{scene}}/split_{{split}}.log",
     shell:
-        "{CLI} tool-split --stamp {input.params:q} --data-dir results/{wildcards.scene}/data --split {wildcards.split} "
+        "{CLI} tool-split --stamp {input.params:q} --data-dir {RESULTS}/{wildcards.scene}/data --split {wildcards.split} "
         "--label {params.label} --out {output:q} 2> {log:q}"
 
 
@@ -116,8 +116,8 @@ rule tool_data_report:
         code=stage_code("tool-data-report"),
         params=param_stamp("tool-data-report"),
     output:
-        qc=reported(["results/{scene}/qc.md"], "{scene}")[0],
-        figures=reported(expand("results/{{scene}}/figures/{fig}.png", fig=TOOL_DATA_FIGURES), "{scene}"),
+        qc=reported([f"{RESULTS}/{{scene}}/qc.md"], "{scene}")[0],
+        figures=reported(expand(RESULTS + "/{{scene}}/figures/{fig}.png", fig=TOOL_DATA_FIGURES), "{scene}"),
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     resources:
@@ -125,7 +125,7 @@ rule tool_data_report:
     log:
         f"{LOGS}/{{scene}}/data_report.log",
     shell:
-        "{CLI} tool-data-report --stamp {input.params:q} --scene {wildcards.scene} --in-dir results/{wildcards.scene} 2> {log:q}"
+        "{CLI} tool-data-report --stamp {input.params:q} --scene {wildcards.scene} --in-dir {RESULTS}/{wildcards.scene} 2> {log:q}"
 
 
 rule tool_data:
@@ -152,12 +152,12 @@ def run_spec(run):
 rule tool_train:
     input:
         data=rules.tool_dataset.output,
-        split=lambda w: f"results/{w.scene}/splits/{run_spec(w.run)[1]}.json",
+        split=lambda w: f"{RESULTS}/{w.scene}/splits/{run_spec(w.run)[1]}.json",
         code=stage_code("tool-train"),
         params=param_stamp("tool-train"),
     output:
-        evaluation="results/{scene}/models/{run}/eval.json",
-        predictions="results/{scene}/models/{run}/predictions.parquet",
+        evaluation=f"{RESULTS}/{{scene}}/models/{{run}}/eval.json",
+        predictions=f"{RESULTS}/{{scene}}/models/{{run}}/predictions.parquet",
         # best.pt, last.pt and history.csv are written beside them but not declared: Snakemake
         # deletes the declared outputs of a killed job, and last.pt must survive to resume it
     wildcard_constraints:
@@ -169,29 +169,29 @@ rule tool_train:
     resources:
         **rule_resources("tool_train"),
     log:
-        "results/logs/{scene}/train_{run}.log",
+        f"{RESULTS}/logs/{{scene}}/train_{{run}}.log",
     shell:
         "{CLI} tool-train --stamp {input.params:q} --scene {wildcards.scene} --variant {params.spec[0]} "
-        "--data-dir results/{wildcards.scene}/data --split {input.split} --depth {params.spec[2]} "
-        "--image-size {params.spec[3]} --out-dir results/{wildcards.scene}/models/{wildcards.run} --quiet 2> {log:q}"
+        "--data-dir {RESULTS}/{wildcards.scene}/data --split {input.split} --depth {params.spec[2]} "
+        "--image-size {params.spec[3]} --out-dir {RESULTS}/{wildcards.scene}/models/{wildcards.run} --quiet 2> {log:q}"
 
 
 rule tool_model_report:
     input:
-        runs=lambda w: expand("results/{scene}/models/{run}/{f}", scene=w.scene, run=tool_runs(w.scene),
+        runs=lambda w: expand(f"{RESULTS}/{{scene}}/models/{{run}}/{{f}}", scene=w.scene, run=tool_runs(w.scene),
                               f=["eval.json", "predictions.parquet"]),
-        splits=lambda w: [f"results/{w.scene}/splits/{run_spec(r)[1]}.json" for r in tool_runs(w.scene)],
+        splits=lambda w: [f"{RESULTS}/{w.scene}/splits/{run_spec(r)[1]}.json" for r in tool_runs(w.scene)],
         data=rules.tool_dataset.output,
         raw=tool_session_files(),
         code=stage_code("tool-model-report"),
         params=param_stamp("tool-model-report"),
         provenance=lambda w: provenance_inputs(w.scene),
     output:
-        metrics=reported(["results/{scene}/metrics.json"], "{scene}")[0],
-        provenance="results/{scene}/provenance.json",
-        runtime="results/{scene}/runtime.json",
-        tables=reported(expand("results/{{scene}}/tables/{t}.md", t=TOOL_MODEL_TABLES), "{scene}"),
-        figures=reported(expand("results/{{scene}}/figures/{fig}.png", fig=TOOL_MODEL_FIGURES), "{scene}"),
+        metrics=reported([f"{RESULTS}/{{scene}}/metrics.json"], "{scene}")[0],
+        provenance=f"{RESULTS}/{{scene}}/provenance.json",
+        runtime=f"{RESULTS}/{{scene}}/runtime.json",
+        tables=reported(expand(RESULTS + "/{{scene}}/tables/{t}.md", t=TOOL_MODEL_TABLES), "{scene}"),
+        figures=reported(expand(RESULTS + "/{{scene}}/figures/{fig}.png", fig=TOOL_MODEL_FIGURES), "{scene}"),
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     params:
@@ -200,7 +200,7 @@ rule tool_model_report:
     resources:
         **rule_resources("tool_model_report"),
     log:
-        "results/logs/{scene}/model_report.log",
+        f"{RESULTS}/logs/{{scene}}/model_report.log",
     shell:
-        "{CLI} tool-model-report --stamp {input.params:q} --scene {wildcards.scene} --in-dir results/{wildcards.scene} "
+        "{CLI} tool-model-report --stamp {input.params:q} --scene {wildcards.scene} --in-dir {RESULTS}/{wildcards.scene} "
         "--runs {params.runs} {params.provenance} 2> {log:q}"

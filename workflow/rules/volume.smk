@@ -15,7 +15,8 @@ rule volume_dataset:
     log:
         f"{LOGS}/volume/dataset.log",
     shell:
-        "{CLI} volume-dataset --stamp {input.params:q} --out {output.data:q} --qc {output.qc:q} 2> {log:q}"
+        "{CLI} volume-dataset --stamp {input.params:q} --shard-root {VOLUME:q}/shards --out {output.data:q} "
+        "--qc {output.qc:q} 2> {log:q}"
 
 
 # a second's work on the dataset table: on a cluster it runs where Snakemake runs (as tool_split)
@@ -115,4 +116,5 @@ rule volume_report:
     log:
         f"{LOGS}/volume/report.log",
     shell:
-        "{CLI} volume-report --stamp {input.params:q} --in-dir {VOLUME:q} {params.provenance} 2> {log:q}"
+        "{CLI} volume-report --stamp {input.params:q} --in-dir {VOLUME:q} --shard-root {VOLUME:q}/shards "
+        "{params.provenance} 2> {log:q}"

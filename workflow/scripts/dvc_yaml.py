@@ -27,19 +27,19 @@ from pathlib import Path
 
 import yaml
 
-from tactilepipe.pipeline import codedeps
+from tactilepipe.pipeline import codedeps, layout
 from tactilepipe.core.atomic import write_text
 
-STAGES = [  # (name, Snakemake targets); "{scale}" is written as DVC's ${scale}
-    ("simulate_volume", ["raw/volume/sim-{scale}/lifts.csv"]),
-    ("simulate_drift", ["raw/drift/sim-{scale}/session.json"]),
+STAGES = [  # (name, Snakemake targets); "{scale}" is written as DVC's ${scale}, "{results}" is the build's folder
+    ("volume_simulate", ["raw/volume/sim-{scale}/lifts.csv"]),
+    ("drift_simulate", ["raw/drift/sim-{scale}/session.json"]),
     ("volume", ["volume_report"]),
     ("drift", ["drift_report"]),
-    ("simulate_tool", ["raw/tool/sim-{scale}/nano17.cal"]),
+    ("tool_simulate", ["raw/tool/sim-{scale}/nano17.cal"]),
     ("tool_data", ["tool_data"]),
-    ("tool_models", ["results/tool_normal/metrics.json", "results/tool_shear/metrics.json"]),
+    ("tool_models", ["{results}/tool_normal/metrics.json", "{results}/tool_shear/metrics.json"]),
 ]
-STAMPS = "results/params"                   # the rules' parameter stamps (common.smk param_stamp)
+STAMP = re.compile(r"^results/[^/]+/params/[^/]+\.json$")   # a parameter stamp (common.smk param_stamp)
 COMMAND = "snakemake --cores 2 --workflow-profile workflow/profiles/default"
 METRICS = {"metrics.json", "provenance.json"}
 UNCACHED_OUTS = {"runtime.json"}
@@ -105,7 +105,7 @@ def fold_outputs(files: list[str], stage: str, output_stage: dict[str, str]) -> 
     entries = set()
     for f in files:
         entry, parts = f, Path(f).parts
-        limit = 3                                        # raw/<scene>/<session>, results/<scene>/<step>
+        limit = 3 if parts[0] == "raw" else 4            # raw/<scene>/<session>, results/<build>/<scene>/<step>
         for depth in range(len(parts) - 1, limit - 1, -1):
             folder = str(Path(*parts[:depth]))
             if not owned(folder):
@@ -115,15 +115,27 @@ def fold_outputs(files: list[str], stage: str, output_stage: dict[str, str]) -> 
     return sorted(entries)
 
 
+def results_folders(params: dict) -> tuple[str, str]:
+    """The build's results folder as Snakemake writes it for params.yaml's scale (results/default),
+    and as dvc.yaml names it, so that the stages follow the scale DVC is given (results/${scale})."""
+    build = params.get("build", "{scale}")
+    return (layout.results_root(build.replace("{scale}", str(params["scale"]))),
+            layout.results_root(build.replace("{scale}", "${scale}")))
+
+
 def generate(params: dict) -> str:
     scale = params["scale"]
-    targets_of = {name: [t.replace("{scale}", scale) for t in targets] for name, targets in STAGES}
+    root, dvc_root = results_folders(params)
+    targets_of = {name: [t.replace("{scale}", scale).replace("{results}", root) for t in targets]
+                  for name, targets in STAGES}
     jobs, dependencies = build_jobs([t for ts in targets_of.values() for t in ts])
     owner = stage_of_jobs(jobs, dependencies, targets_of)
     output_stage = {str(f): owner[j] for j in jobs if j in owner for f in j.output}
     sim = f"sim-{scale}"
 
     def dvc_path(path: str) -> str:
+        if _under(path, root):
+            path = dvc_root + path[len(root):]
         return re.sub(rf"(?<![A-Za-z0-9-]){re.escape(sim)}(?![A-Za-z0-9-])", "sim-${scale}", path)
 
     folded = {name: fold_outputs([f for f, s in output_stage.items() if s == name
@@ -139,7 +151,7 @@ def generate(params: dict) -> str:
             # a rule's stamps name the CLI stages whose code and parameters it depends on (its own,
             # and for a report those its provenance records): its code inputs must be their closure
             stamps = [json.loads(Path(f).read_text()) for f in {str(f) for f in j.input}
-                      if f.startswith(STAMPS + "/")]
+                      if STAMP.match(f)]
             expected = {f for stamp in stamps for f in codedeps.stage_files(stamp["stage"], Path.cwd())}
             if {str(f) for f in j.input if str(f).endswith(".py")} != expected:
                 raise SystemExit(f"rule {j.rule.name}: its code inputs are not the closure of the stages "
@@ -147,7 +159,7 @@ def generate(params: dict) -> str:
             for stamp in stamps:
                 keys.update(stamp["declared"] + stamp["graph"])
             for f in map(str, j.input):
-                if f.startswith(STAMPS + "/"):
+                if STAMP.match(f):
                     continue                      # DVC reads the same values from params.yaml
                 if f.endswith(".py"):
                     code.add(f)
@@ -161,14 +173,15 @@ def generate(params: dict) -> str:
                     deps.add(f)
         outs = folded[name]
         special = sorted(f for f, s in output_stage.items() if s == name and Path(f).name in METRICS | UNCACHED_OUTS)
-        stage = {"cmd": f"{COMMAND} " + " ".join(t.replace("{scale}", "${scale}") for t in targets),
-                 "deps": sorted(deps) + sorted(code) + sorted(rule_files),
+        stage = {"cmd": f"{COMMAND} " + " ".join(t.replace("{scale}", "${scale}").replace("{results}", dvc_root)
+                                                 for t in targets),
+                 "deps": sorted(map(dvc_path, deps)) + sorted(code) + sorted(rule_files),
                  "params": _outermost(keys) + ["scales.${scale}"]}
         # sessions, shards and trained models are kept while a stage re-runs: Snakemake inside it
         # rebuilds exactly the out-of-date ones (persist), which is what makes a new session cheap
         stage["outs"] = [{dvc_path(o): {"persist": True}} if _persisted(o) else dvc_path(o) for o in outs]
-        stage["outs"] += [{f: {"cache": False}} for f in special if Path(f).name in UNCACHED_OUTS]
-        metrics = [{f: {"cache": False}} for f in special if Path(f).name in METRICS]
+        stage["outs"] += [{dvc_path(f): {"cache": False}} for f in special if Path(f).name in UNCACHED_OUTS]
+        metrics = [{dvc_path(f): {"cache": False}} for f in special if Path(f).name in METRICS]
         if metrics:
             stage["metrics"] = metrics
         doc["stages"][name] = stage
@@ -199,12 +212,13 @@ SMK = "snakemake -s ../../Snakefile --cores 2 --workflow-profile ../../workflow/
 RULE_FILES = ["../../Snakefile", "../../workflow/rules"]
 
 
-def study000() -> str:
+def study000(params: dict) -> str:
     """studies/000/dvc.yaml: its stages, with the exact source files of the CLI stages they run."""
     def code(*stages: str) -> list[str]:
         return sorted({f"../../{f}" for s in stages for f in codedeps.stage_files(s, Path.cwd())})
 
     session = "raw/tool/${public_data.session}"
+    res = results_folders(params)[1]                # the build's folder, as DVC names it (results/${scale})
     stages = {}
     for kind in ("normal", "shear"):
         stages[f"unpack_{kind}"] = {
@@ -214,26 +228,26 @@ def study000() -> str:
             "outs": [f"{session}/data_{kind}"]}
     data_stages = ("tool-ingest", "tool-dataset", "tool-split")
     stages["data"] = {
-        "cmd": f"{SMK} results/tool_normal/data/samples.parquet results/tool_normal/splits/public_frame.json "
-               f"results/tool_normal/splits/trial.json",
+        "cmd": f"{SMK} {res}/tool_normal/data/samples.parquet {res}/tool_normal/splits/public_frame.json "
+               f"{res}/tool_normal/splits/trial.json",
         "deps": [f"{session}/data_normal", f"{session}/trials.csv"] + code(*data_stages) + RULE_FILES,
         "params": ["scale", "seed", "tool_ingest", "tool_sync", "tool_split", "scales.${scale}"],
-        "outs": [{"results/tool/shards": {"persist": True}}, "results/tool_normal/data", "results/tool_normal/splits"]}
+        "outs": [{f"{res}/tool/shards": {"persist": True}}, f"{res}/tool_normal/data", f"{res}/tool_normal/splits"]}
     stages["protocols"] = {
         "cmd": f"{SMK} study000_protocols",
-        "deps": ["results/tool_normal/data", "results/tool_normal/splits"]
+        "deps": [f"{res}/tool_normal/data", f"{res}/tool_normal/splits"]
                 + code("tool-train", "study000-table") + RULE_FILES,
         "params": ["scale", "seed", "tool_train", "public_data.paper", "scales.${scale}"],
-        "outs": [{"results/tool_normal/models": {"persist": True}}, "results/study000/protocols.csv",
-                 "results/study000/protocols.md"],
-        "metrics": [{"results/study000/metrics.json": {"cache": False}}]}
+        "outs": [{f"{res}/tool_normal/models": {"persist": True}}, f"{res}/study000/protocols.csv",
+                 f"{res}/study000/protocols.md"],
+        "metrics": [{f"{res}/study000/metrics.json": {"cache": False}}]}
     stages["published"] = {
         "cmd": f"{SMK} study000_published",
-        "deps": ["raw/downloads/best_model_normal.pth", "results/tool_normal/data"]
+        "deps": ["raw/downloads/best_model_normal.pth", f"{res}/tool_normal/data"]
                 + code("tool-evaluate", "study000-table") + RULE_FILES,
         "params": ["tool_train.device", "public_data.files.best_model_normal", "public_data.paper"],
-        "outs": ["results/study000/published_normal", "results/study000/published.csv",
-                 "results/study000/published.md"]}
+        "outs": [f"{res}/study000/published_normal", f"{res}/study000/published.csv",
+                 f"{res}/study000/published.md"]}
     out = io.StringIO()
     out.write(STUDY000_HEADER)
     yaml.safe_dump({"stages": stages}, out, sort_keys=False, width=110)
@@ -256,9 +270,9 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="dvc.yaml")
     parser.add_argument("--study000", action="store_true", help="only studies/000/dvc.yaml (no Snakemake graph)")
     args = parser.parse_args(argv)
-    targets = [(STUDY000, study000)]
+    params = yaml.safe_load(Path("params.yaml").read_text())
+    targets = [(STUDY000, lambda: study000(params))]
     if not args.study000:
-        params = yaml.safe_load(Path("params.yaml").read_text())
         targets.insert(0, (args.out, lambda: generate(params)))
     status = 0
     for path, make in targets:

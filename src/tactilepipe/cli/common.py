@@ -24,7 +24,7 @@ def param_overrides(args) -> dict:
 def stage_params(args, *keys: str) -> dict:
     """The stage's parameters, cut down to ``keys`` (dotted, e.g. "tool_train.lr": the ``params`` of
     its declaration): reading any other key raises. Under the workflow they come from the stage's
-    stamp (``--stamp results/params/<stage>.json``), the values Snakemake validated and records, so
+    stamp (``--stamp results/<build>/params/<stage>.json``), the values Snakemake validated and records, so
     a job receives exactly what its stamp says; by hand, from params.yaml (+ --override), resolved
     for the scale."""
     from tactilepipe.core.config import declared, load_params

@@ -32,6 +32,8 @@ def _tolerances(items: list[str]) -> dict[str, float]:
                    help="none: HEAD against the workspace; one: it against the workspace; two: the first against "
                         "the second. A git revision or a DVC experiment's name"),
                arg("--scenes", nargs="+", help="only these scenes (default: every scene)"),
+               arg("--build", help="the build compared, results/<build>/ (default: the build params.yaml names "
+                                   "at its scale, results/default/ for the committed results)"),
                arg("--fail-on", nargs="+", default=[], metavar="METRIC=TOL",
                    help="exit 1 when a metric (mae, rmse, r2, or a value's last name) of any model got worse by "
                         "more than TOL (finite, >= 0), or is NaN or null in the new run, e.g. --fail-on mae=0.05 "
@@ -52,7 +54,14 @@ def cmd_diff(args, p) -> int:
     unknown = set(scenes) - set(diff.SCENES)
     if unknown:
         raise ArgumentError(f"unknown scene(s) {', '.join(sorted(unknown))} (one of {', '.join(diff.SCENES)})")
-    diffs = diff.diff_runs(diff.read_run(old_rev, args.repo, scenes), diff.read_run(new_rev, args.repo, scenes), scenes)
+    if args.build is None:
+        from pathlib import Path
+
+        from tactilepipe.core.config import load_params
+        params = Path(args.repo) / "params.yaml"       # a remote --repo: the default scale's build
+        args.build = load_params(params)["build"] if params.is_file() else "default"
+    diffs = diff.diff_runs(diff.read_run(old_rev, args.repo, scenes, args.build),
+                           diff.read_run(new_rev, args.repo, scenes, args.build), scenes)
     names = {r.metric.rsplit(".", 1)[-1] for d in diffs for r in d.rows}
     unknown_metrics = sorted(set(tolerances) - names)
     if unknown_metrics:

@@ -18,7 +18,7 @@ def build_parser() -> argparse.ArgumentParser:
     settings.add_argument("--params", default="params.yaml", help="parameter file (default: params.yaml)")
     settings.add_argument("--scale", help="smoke | default | paper (overrides params.yaml)")
     settings.add_argument("--override", help="JSON object merged over params.yaml before validation")
-    settings.add_argument("--stamp", help="the workflow's parameter stamp of this stage (results/params/<stage>.json): "
+    settings.add_argument("--stamp", help="the workflow's parameter stamp of this stage (results/<build>/params/<stage>.json): "
                                           "its values instead of params.yaml")
     provenance = argparse.ArgumentParser(add_help=False)
     provenance.add_argument("--provenance-stages", nargs="*", default=[], metavar="STAGE",

@@ -12,7 +12,7 @@ From that one declaration:
 - the command line builds the sub-command (``add_commands``) and hands the function its
   parameters, cut down to ``params`` (``p``; reading any other key is an error);
 - the workflow (``pipeline/codedeps.py``, which reads the declarations from the source without
-  importing them) stamps the values of ``params`` and ``graph`` (results/params/<name>.json), lists
+  importing them) stamps the values of ``params`` and ``graph`` (results/<build>/params/<name>.json), lists
   them as the DVC stage's params, and takes the function's imports as the stage's code.
 ``params`` and ``graph`` must be tuples of string literals, so that they can be read that way.
 """

@@ -92,7 +92,7 @@ def cmd_record(args, p) -> int | None:
                      "every frame pair the cameras deliver; print it with its latency and log it (docs/rig.md).",
          formatter_class=argparse.ArgumentDefaultsHelpFormatter,
          params=("tool_ingest.stored_size", "predict"),
-         args=(arg("--checkpoint", required=True, help="e.g. results/tool_normal/models/full/best.pt"),
+         args=(arg("--checkpoint", required=True, help="e.g. results/default/tool_normal/models/full/best.pt"),
                arg("--left", required=True, help=f"left finger's camera: {CAMERA_HELP}"),
                arg("--right", required=True, help=f"right finger's camera: {CAMERA_HELP}"),
                arg("--mode", choices=MODE_NAMES, default="qvga60", help="DIGIT stream mode"),

@@ -99,7 +99,7 @@ def cmd_tool_split(args, p) -> None:
          # a run's name gives its variant and repeat; its split, depth and input size come from these
          graph=("tool_train.split", "tool_train.depth", "tool_train.image_size"),
          args=(SCENE, arg("--variant", choices=list(VARIANTS), required=True), arg("--data-dir", required=True),
-               arg("--split", required=True, help="split file (results/<scene>/splits/<name>.json)"),
+               arg("--split", required=True, help="split file (results/<build>/<scene>/splits/<name>.json)"),
                arg("--out-dir", required=True),
                arg("--depth", type=int, choices=list(DEPTHS), required=True, help="ResNet depth"),
                arg("--image-size", type=int, required=True, help="train on frames downscaled to this size"),
@@ -120,7 +120,7 @@ def cmd_tool_train(args, p) -> None:
          graph=("tool_sessions", "tool_train.loto", "tool_split.repeats"),
          args=(SCENE, arg("--in-dir", required=True),
                arg("--runs", nargs="+", required=True,
-                   help="every run of the scene (results/<scene>/models/<run>; names as in tool/runs.py)")),
+                   help="every run of the scene (results/<build>/<scene>/models/<run>; names as in tool/runs.py)")),
          provenance=True)
 def cmd_tool_model_report(args, p) -> None:
     from tactilepipe.tool.report.models import build_model_report
@@ -131,7 +131,7 @@ def cmd_tool_model_report(args, p) -> None:
 
 @command("predict", "stream a recorded trial through a trained model",
          params=("tool_ingest.ros_topics", "tool_ingest.stored_size", "predict"),
-         args=(arg("--checkpoint", required=True, help="e.g. results/tool_normal/models/full/best.pt"),
+         args=(arg("--checkpoint", required=True, help="e.g. results/default/tool_normal/models/full/best.pt"),
                arg("--trial", required=True, help="trial folder or bag"),
                arg("--format", choices=["native", "public", "ros"], default="native"),
                arg("--limit", type=int, help="stop after this many frame pairs"),
@@ -147,7 +147,7 @@ def cmd_predict(args, p) -> None:
 
 @command("portability", "compare a smoke build's tool runs with results/portability.json: the same bytes on "
                         "every machine kind (adds this one when new)",
-         args=(arg("--results", default="results", help="results folder of a smoke-scale build (make smoke)"),
+         args=(arg("--results", default="results/smoke", help="results folder of a smoke-scale build (make smoke)"),
                arg("--record", default="results/portability.json", help="the record to check and extend"),
                arg("--new", action="store_true",
                    help="start the record again from this build and machine (after a deliberate change of the "

@@ -49,7 +49,7 @@ def cmd_papillarray_ingest(args, p) -> None:
 
 @command("volume-dataset", "segment the off-table phase of every lift",
          params=("volume_sessions", "segment", "papillarray_axes", "volume_checks"),
-         args=(arg("--raw-root", default="raw/volume"), arg("--shard-root", default="results/volume/shards"),
+         args=(arg("--raw-root", default="raw/volume"), arg("--shard-root", default="results/default/volume/shards"),
                arg("--out", required=True), arg("--qc", required=True)))
 def cmd_volume_dataset(args, p) -> None:
     from tactilepipe.core.atomic import write_parquet, write_text
@@ -132,7 +132,7 @@ def cmd_volume_baseline(args, p) -> None:
          params=("scale", "volume_sessions", "mlp.modalities", "mlp.grid.modality", "mlp.grid.inner_folds",
                  "folds.train_lifts_per_volume", "folds.test_lifts_per_volume"),
          args=(arg("--in-dir", required=True, help="the scene's results folder"),
-               arg("--raw-root", default="raw/volume"), arg("--shard-root", default="results/volume/shards")),
+               arg("--raw-root", default="raw/volume"), arg("--shard-root", default="results/default/volume/shards")),
          provenance=True)
 def cmd_volume_report(args, p) -> None:
     from tactilepipe.volume.report import build_report
@@ -144,7 +144,7 @@ def cmd_volume_report(args, p) -> None:
 @command("volume-regimes", "Table 1 of the volume study under each grasp regime (params.yaml volume_regimes)",
          params=("scale", "seed", "simulate_volume", "segment", "papillarray_axes", "volume_checks",
                  "folds", "mlp", "baseline", "volume_sensor", "volume_regimes"),
-         args=(arg("--out-dir", required=True, help="e.g. results/volume_regimes"),
+         args=(arg("--out-dir", required=True, help="e.g. results/default/volume_regimes"),
                arg("--regimes", nargs="*", help="only these regimes (default: all of volume_regimes)"),
                arg("--jobs", type=int, default=1, help="worker processes for the simulation (default 1)")))
 def cmd_volume_regimes(args, p) -> None:

@@ -164,6 +164,7 @@ def resolve(raw: dict, source: str = "params.yaml", overrides: dict | None = Non
     for key in ("volume_sessions", "tool_sessions"):
         resolved[key] = [s.replace("{scale}", scale) for s in resolved[key]]
     resolved["drift_session"] = resolved["drift_session"].replace("{scale}", scale)
+    resolved["build"] = resolved["build"].replace("{scale}", scale)
     _check_consistency(resolved, source)
     return resolved
 

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 from tactilepipe.core.errors import InputError
 from tactilepipe.core.intervals import paired_difference
+from tactilepipe.pipeline.layout import results_root
 from tactilepipe.tool.scenes import TOOL_SCENES
 
 SCENES = ("volume", "drift", *TOOL_SCENES)
@@ -118,22 +119,28 @@ class SceneDiff:
 
 # ----------------------------------------------------------------------------- reading a run
 
-def read_run(rev: str | None, repo: str = ".", scenes=SCENES) -> dict[str, dict | None]:
-    """Each scene's ``metrics.json`` and ``provenance.json`` at ``rev`` (None: the workspace);
-    a scene the run does not have is None."""
+def read_run(rev: str | None, repo: str = ".", scenes=SCENES, build: str = "default") -> dict[str, dict | None]:
+    """Each scene's ``metrics.json`` and ``provenance.json`` of ``build`` (results/<build>/) at
+    ``rev`` (None: the workspace); a scene the run does not have is None. Revisions from before
+    builds had folders kept the default scale's results in results/<scene>/: the default build
+    is read there when its folder is absent, so a diff across that move still compares."""
     import dvc.api
     from dvc.exceptions import DvcException, PathMissingError
+    roots = [results_root(build)] + (["results"] if build == "default" else [])
     out = {}
     for scene in scenes:
-        files = {}
-        for name in ("metrics", "provenance"):
-            path = f"results/{scene}/{name}.json"
-            try:
-                files[name] = json.loads(dvc.api.read(path, repo=repo, rev=rev))
-            except (FileNotFoundError, PathMissingError):
-                files[name] = None
-            except (DvcException, json.JSONDecodeError) as exc:
-                raise InputError(f"{path} at {rev or 'the workspace'}", str(exc).splitlines()[0]) from None
+        for root in roots:
+            files = {}
+            for name in ("metrics", "provenance"):
+                path = f"{root}/{scene}/{name}.json"
+                try:
+                    files[name] = json.loads(dvc.api.read(path, repo=repo, rev=rev))
+                except (FileNotFoundError, PathMissingError):
+                    files[name] = None
+                except (DvcException, json.JSONDecodeError) as exc:
+                    raise InputError(f"{path} at {rev or 'the workspace'}", str(exc).splitlines()[0]) from None
+            if files["metrics"] is not None:
+                break
         out[scene] = files if files["metrics"] is not None else None
     return out
 

@@ -11,7 +11,7 @@ Two numbers per rule:
   real model (torch's FlopCounterMode on the meta device: nothing is allocated, so ResNet-101 at
   224 px costs a second, not gigabytes). Epochs are `tool_train.max_epochs` (early stopping only
   shortens a run: an upper estimate). Pairs come from the dataset when it exists
-  (results/<scene>/data/samples.parquet), else from the simulator's session plan; the splits take
+  (results/<build>/<scene>/data/samples.parquet), else from the simulator's session plan; the splits take
   `tool_split.fractions`. FLOPs become hours through `resources.cost_model`: sustained GFLOP/s per
   CPU core (measured here) and TFLOP/s of one GPU with mixed precision (assumed).
 """
@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Callable, Iterable
 
 from tactilepipe.pipeline import sourcecache
+from tactilepipe.pipeline.layout import results_root
 
 # (rule, wildcards, resources, threads) of one job, as Snakemake's DAG has it
 Job = tuple[str, dict, dict, int]
@@ -58,7 +59,7 @@ def _count_forward_flops(variant: str, depth: int, image_size: int, gam_channel_
 
 def planned_pairs(p: dict, scene: str, root: Path = Path(".")) -> int | None:
     """Frame pairs of a tool scene's dataset: counted when built, else planned by the simulator."""
-    samples = root / "results" / scene / "data" / "samples.parquet"
+    samples = root / results_root(p["build"]) / scene / "data" / "samples.parquet"
     if samples.exists():
         import pyarrow.parquet as pq
         return pq.ParquetFile(samples).metadata.num_rows

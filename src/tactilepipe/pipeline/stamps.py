@@ -1,4 +1,4 @@
-"""Parameter stamps, results/params/<stage>.json: the values a pipeline stage is given.
+"""Parameter stamps, results/<build>/params/<stage>.json: the values a pipeline stage is given.
 
 The workflow writes a stage's stamp (its declared keys and the keys the rules read to shape its
 jobs, with their values) and rewrites it only when the values change; the stage, run by a rule

@@ -46,6 +46,9 @@ Pair = Annotated[list[T], Field(min_length=2, max_length=2)]      # a low-high r
 Triple = Annotated[list[T], Field(min_length=3, max_length=3)]    # one per axis or channel
 # A session folder's name; "{scale}" in it is replaced by the scale.
 SessionName = Annotated[str, Field(pattern=r"^[A-Za-z0-9_.{}-]+$")]
+# A build's folder name under results/; "{scale}" in it is replaced by the scale. No dots: a build
+# is one folder, never "." or ".." or a path.
+BuildName = Annotated[str, Field(pattern=r"^([A-Za-z0-9_-]|\{scale\})+$")]
 
 
 _OVERLAYS: set[type[Group]] = set()

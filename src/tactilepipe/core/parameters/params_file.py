@@ -4,7 +4,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
-from tactilepipe.core.parameters.base import Group, RequiredKeys, SessionName, UniqueList, overlay_of
+from tactilepipe.core.parameters.base import BuildName, Group, RequiredKeys, SessionName, UniqueList, overlay_of
 from tactilepipe.core.parameters.resources import Resources
 from tactilepipe.core.parameters.tool import Predict, PublicData, ToolIngest, ToolSplit, ToolSync, ToolTrain
 from tactilepipe.core.parameters.tool_sim import SimulateTool
@@ -45,6 +45,8 @@ class Params(ParameterGroups):
 
     scenes: UniqueList[Literal["volume", "drift", "tool_normal", "tool_shear"]] = Field(min_length=1)
     scale: str
+    build: BuildName = Field("{scale}", description="the build's folder under results/ (results/<build>/): \"{scale}\" in it "
+                                         "is replaced by the scale, so each scale keeps its own results")
     seed: int = Field(ge=0, le=2**32 - 1, description="below 2**32: numpy's and torch's generators take it, "
                                                       "with room for the per-repeat and per-epoch offsets")
     volume_sessions: UniqueList[SessionName] = Field(min_length=1)

@@ -16,11 +16,11 @@ class JobResources(Group):
 class RuleResources(Group):
     """One entry per rule that runs something (a misspelt rule is refused)."""
 
-    simulate_volume: JobResources
-    simulate_drift: JobResources
-    simulate_tool: JobResources
-    ingest_papillarray: JobResources
-    ingest_tool: JobResources
+    volume_simulate: JobResources
+    drift_simulate: JobResources
+    tool_simulate: JobResources
+    papillarray_ingest: JobResources
+    tool_ingest: JobResources
     volume_dataset: JobResources
     volume_split: JobResources
     volume_train: JobResources

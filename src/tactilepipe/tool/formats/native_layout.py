@@ -132,7 +132,7 @@ def frame_orientation(width: int, height: int) -> str:
 
 
 def check_tool_name(tool: str, where, record: str | None = None) -> None:
-    """A tool's name becomes part of file and run names (results/<scene>/models/full_loto_<tool>):
+    """A tool's name becomes part of file and run names (results/<build>/<scene>/models/full_loto_<tool>):
     lowercase letters, digits and _ only, refused here rather than as a missing file later."""
     if not TOOL_NAME.fullmatch(tool):
         suggestion = re.sub(r"[^a-z0-9_]+", "_", tool.strip().lower()).strip("_") or "tool_1"

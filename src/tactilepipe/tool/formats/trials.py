@@ -68,7 +68,7 @@ def read_trials_csv(session_dir: str | Path) -> dict[str, dict]:
     The public layout does not record which tool a trial used; every split by tool (and the
     report) needs it, so the file is required. A trial is named by its folder (t0) or, where
     data_normal/ and data_shear/ reuse a name, by kind folder and name (data_normal/t0). Rows
-    with an empty tool or pose (the template `tactilepipe unpack-public` writes) are left out:
+    with an empty tool or pose (the template `tactilepipe study000-unpack` writes) are left out:
     check_public_session names those trials as lacking a tool.
     """
     path = Path(session_dir) / TRIALS_CSV

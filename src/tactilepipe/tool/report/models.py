@@ -1,6 +1,6 @@
 """Tool scene results: metrics.json, tables and the model figures, from the trained runs.
 
-Runs live in results/<scene>/models/<run>/ (eval.json, predictions.parquet); their names are
+Runs live in results/<build>/<scene>/models/<run>/ (eval.json, predictions.parquet); their names are
 explained in ``tool/runs.py``. Repeat 0 of the default split is the one the per-run figures and
 the ``variants`` table draw; every score is also reported over all repeats (mean, std, 95 %
 interval), with paired differences between variants and each variant's verdict against the

@@ -14,7 +14,7 @@ A record holds:
   model number, vector extensions, torch's native dispatch level; and how the CPU was met:
   ``execution`` "real" (every run of the build, on a real CPU of that kind) or "emulated" (a CPU
   model that an emulator presents, with its ``emulator``: program, version and CPU model, and the
-  ``runs`` retrained under it; docs/decisions/0024-*.md).
+  ``runs`` retrained under it; docs/decisions/0024-real-and-emulated-machine-kinds.md).
 
 ``check`` compares a smoke build with the record: a run whose bytes differ is a finding, named
 with this machine and the machines that made the recorded bytes; a new real machine kind with
@@ -72,7 +72,7 @@ def run_digests(results: Path) -> dict[str, dict]:
             runs[f"{scene}/{run.name}"] = {"weights": weights_digest(run / "best.pt"),
                                           "predictions": predictions_digest(run / "predictions.parquet")}
     if not runs:
-        raise InputError(results, "no trained tool runs (results/<scene>/models/<run>/best.pt): build the smoke "
+        raise InputError(results, "no trained tool runs (results/<build>/<scene>/models/<run>/best.pt): build the smoke "
                                   "scale first (make smoke)")
     return runs
 

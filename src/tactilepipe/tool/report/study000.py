@@ -30,7 +30,7 @@ from tactilepipe.tool.scenes import scene_label
 from tactilepipe.tool.data.splits import label_stats
 
 PUBLIC_IMAGE_SIZE = 224     # the public code resizes every frame to 224 x 224
-PROTOCOLS = {   # run (results/<scene>/models/<run>) -> how the table names it
+PROTOCOLS = {   # run (results/<build>/<scene>/models/<run>) -> how the table names it
     "full_public_frame": "frame-level 70/15/15 split of the public code (leaky: the paper's protocol)",
     "full_trial": "whole trials per split (ours: no frame of a test trial is seen in training)",
 }
