@@ -59,7 +59,7 @@ def main() -> None:
                     "only: a check that it runs")
     args = ap.parse_args()
     p = load_params(REPO / "params.yaml", {"scale": "smoke"} if args.small else None)
-    frames, seconds, settings = (40, 2, (False,)) if args.small else (FRAMES, 60, (False, True))
+    n_frames, seconds, settings = (40, 2, (False,)) if args.small else (FRAMES, 60, (False, True))
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         session = tmp / "sim"
@@ -72,14 +72,14 @@ def main() -> None:
             frames = sorted((trial / sensor).glob("frame_*.png"))
             out = tmp / "cameras" / sensor
             out.mkdir(parents=True)
-            for k in range(frames):
+            for k in range(n_frames):
                 cv2.imwrite(str(out / f"frame_{k:06d}.png"), from_layout(cv2.imread(str(frames[k % len(frames)]))))
             sources[sensor] = str(out / "frame_%06d.png")
         checkpoint = Path(args.checkpoint)
         if args.small or not checkpoint.exists():
             checkpoint = untrained_checkpoint(p, tmp / "untrained.pt")
         fps = MODES[MODE][2]
-        print(f"checkpoint: {checkpoint}\ncameras: {frames} frames per finger at {fps} fps ({MODE}); "
+        print(f"checkpoint: {checkpoint}\ncameras: {n_frames} frames per finger at {fps} fps ({MODE}); "
               f"predict: trial {spec.name}")
         print(f"\n{'':<10}{'live pairs/s':>14}{'latency ms':>12}{'compute ms':>12}{'skipped':>9}"
               f"{'predict pairs/s':>17}")
