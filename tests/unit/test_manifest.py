@@ -83,7 +83,7 @@ def test_the_hash_cache_is_used_only_while_the_file_is_unmoved(tmp_path: Path):
     first = m.file_state(log)["sha256"]
     m.save()
     cached = _manifest(session, tmp_path)
-    rel = str(log.resolve().relative_to(session.resolve()))
+    rel = os.path.relpath(log, session)
     cached.entries[rel][4] = "0" * 64                # a stored hash is believed while the key holds
     assert cached.file_state(log)["sha256"] == "0" * 64
     log.write_text("1,500\n2,509\n")

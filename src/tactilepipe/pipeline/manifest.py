@@ -46,7 +46,8 @@ class SessionManifest:
     inode). ``save()`` writes the cache back when something was hashed."""
 
     def __init__(self, session_dir: str | Path, cache_dir: Path | None = None):
-        self.root = Path(session_dir).resolve()
+        self.root = Path(os.path.abspath(session_dir))      # not resolve(): a realpath per file costs
+        self.prefix = str(session_dir).rstrip("/") + "/"     # a file named under it: its name, cut
         key = hashlib.sha256(str(self.root).encode()).hexdigest()[:24]
         self.cache_file = (cache_dir or CACHE_DIR / "content") / f"{key}.json"
         self.entries = self._load()
@@ -71,7 +72,8 @@ class SessionManifest:
             return None
         if not stat.S_ISREG(st.st_mode):
             return None
-        rel = str(path.resolve().relative_to(self.root))
+        name = str(path)
+        rel = name[len(self.prefix):] if name.startswith(self.prefix) else os.path.relpath(os.path.abspath(path), self.root)
         key = [st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino]
         cached = self.entries.get(rel)
         if not (isinstance(cached, list) and len(cached) == 5 and cached[:4] == key):
