@@ -90,3 +90,17 @@ def test_the_hash_cache_is_used_only_while_the_file_is_unmoved(tmp_path: Path):
     os.utime(log, ns=(OLD, OLD))                     # content changed, time put back: ctime moved
     assert cached.file_state(log)["sha256"] not in (first, "0" * 64)
     assert cached.file_state(session / "missing") is None
+
+
+def test_a_file_recorded_as_absent_is_dated_by_its_time_not_by_a_copy(tmp_path: Path):
+    session, log, output = _session(tmp_path)
+    stamp = tmp_path / "stamps" / "t1.json"
+    update_stamp(stamp, _manifest(session, tmp_path), [str(session / "t1" / "later.log")], output)
+    later = session / "t1" / "later.log"             # written after the stamp, then copied (new ctime)
+    later.write_text("1,500\n")
+    os.utime(later, ns=(OLD, OLD))
+    scratch = tmp_path / "scratch" / "t1.json"
+    path, change = update_stamp(stamp, _manifest(session, tmp_path), [str(later)], output, dry_run_copy=scratch)
+    assert path == stamp and change is None and not scratch.exists()
+    update_stamp(stamp, _manifest(session, tmp_path), [str(later)], output)
+    assert stamp.stat().st_mtime_ns == OLD

@@ -134,7 +134,10 @@ def update_stamp(stamp: str | Path, manifest: SessionManifest, files: list[str],
         # recorded, not reported: only a change of recorded content explains a re-run
         told = [f for f in changed if before.get(f) is not None]
         change = ("content changed: " + ", ".join(told) if told else None) if changed else "unreadable stamp, rewritten"
-        times = [states[f]["ctime_ns"] for f in changed if states.get(f)]
+        # a file with no recorded content is dated by its modification time, as a first record is
+        # (its job's output cannot predate it, but a copy of the project gives it a new ctime)
+        times = [states[f]["ctime_ns"] if before.get(f) is not None else states[f]["mtime_ns"]
+                 for f in changed if states.get(f)]
         # a removed file, or a change whose ctime the file system did not move past the stamp
         # (a rename on a file system that keeps ctime), is dated now: re-run rather than miss it
         when = max(times) if times and len(times) == len(changed) and max(times) > old_time else time.time_ns()
