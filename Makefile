@@ -52,6 +52,7 @@ bench: $(STAMP)  ## benchmarks, each printing ours next to the reference loop an
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_train_jobs.py
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_kernels.py
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_live.py
+	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_scheduler.py
 
 pull: $(STAMP)  ## fetch shared results (dvc pull) and, once DVC finds them current by content, mark them so for Snakemake
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/dvc pull

@@ -10,7 +10,7 @@ The default-scale recordings, shards and tool models of this checkout are reused
 and trained (about 45 min for the tool models on 2 cores). The stages timed are simulate_*,
 volume, drift, tool_data and tool_models.
 
-    .venv/bin/python benchmarks/bench_dvc.py [--keep]
+    .venv/bin/python benchmarks/bench_dvc.py [--keep] [--small]
 """
 
 from __future__ import annotations
@@ -45,32 +45,36 @@ def sh(cmd: list[str], cwd: Path) -> float:
     return dt
 
 
-def setup(wd: Path) -> float:
+def setup(wd: Path, small: bool = False) -> float:
     for name in ("Snakefile", "params.yaml", "dvc.yaml", ".dvcignore", ".gitignore"):
         shutil.copy(REPO / name, wd / name)
+    if small:                                                  # the smoke scale's drift scene only
+        text = (wd / "params.yaml").read_text()
+        assert "scale: default " in text
+        (wd / "params.yaml").write_text(text.replace("scale: default ", "scale: smoke ", 1))
     for name in ("workflow", "src"):
         shutil.copytree(REPO / name, wd / name, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
     (wd / "profiles").symlink_to("workflow/profiles")      # plain `snakemake` finds profiles/default
-    for scene in ("volume", "drift", "tool"):
+    for scene in () if small else ("volume", "drift", "tool"):
         src = REPO / "raw" / scene / "sim-default"
         if src.is_dir():
             (wd / "raw" / scene).mkdir(parents=True, exist_ok=True)
             subprocess.run(["cp", "-al", str(src), str(wd / "raw" / scene)], check=True)
     for shards in ("volume/shards/sim-default", "drift/shards/sim-default", "tool/shards/sim-default"):
-        if (REPO / "results/default" / shards).is_dir():
+        if not small and (REPO / "results/default" / shards).is_dir():
             shutil.copytree(REPO / "results/default" / shards, wd / "results/default" / shards)     # keeps mtimes
     for scene in ("tool_normal", "tool_shear"):                       # data, splits, models, figures
-        if (REPO / "results/default" / scene / "metrics.json").is_file():
+        if not small and (REPO / "results/default" / scene / "metrics.json").is_file():
             shutil.copytree(REPO / "results/default" / scene, wd / "results/default" / scene,
                             ignore=shutil.ignore_patterns("last.pt"))
     # the rules' parameter stamps, with their times (older than the results they made)
-    if (REPO / "results/default/params").is_dir():
+    if not small and (REPO / "results/default/params").is_dir():
         shutil.copytree(REPO / "results/default/params", wd / "results/default/params")
     # Snakemake's records of how each output was made (rule, params, input checksums): without
     # them the copy is a fresh clone, and the outputs DVC re-copies from its cache while committing
     # tool_data (new mtimes) would look newer than the models and re-train them (`make pull`
     # marks pulled results current for the same reason)
-    if (REPO / ".snakemake/metadata").is_dir():
+    if not small and (REPO / ".snakemake/metadata").is_dir():
         shutil.copytree(REPO / ".snakemake/metadata", wd / ".snakemake/metadata")
     sh(["git", "init", "-q"], wd)
     sh(["git", "config", "user.email", "bench@example.com"], wd)
@@ -78,7 +82,7 @@ def setup(wd: Path) -> float:
     sh([str(BIN / "dvc"), "init", "-q"], wd)
     shutil.copy(REPO / ".dvc/config", wd / ".dvc/config")
     sh([str(BIN / "dvc"), "remote", "modify", "local", "url", str(wd.parent / "remote")], wd)
-    dt = sh([str(BIN / "dvc"), "repro", *STAGES], wd)
+    dt = sh([str(BIN / "dvc"), "repro", *(["drift"] if small else STAGES)], wd)
     sh(["git", "add", "."], wd)
     sh(["git", "commit", "-q", "-m", "default scale"], wd)
     return dt
@@ -92,17 +96,26 @@ def best_of(cmd: list[str], wd: Path, n: int = 3) -> tuple[float, float]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--keep", action="store_true", help="keep the temporary project")
+    ap.add_argument("--small", action="store_true", help="the drift scene at the smoke scale, each command once, "
+                    "no new session: a check that it runs")
     args = ap.parse_args()
+    stages, repeats = (["drift"], 1) if args.small else (STAGES, 3)
     root = Path(tempfile.mkdtemp(prefix="bench_dvc_"))
     wd = root / "project"
     wd.mkdir()
     try:
-        print(f"project copy in {wd}; building the default scale once (dvc repro {' '.join(STAGES)}) ...",
-              flush=True)
-        print(f"  first dvc repro (reused recordings and shards): {setup(wd):.1f} s", flush=True)
-        smk_first = sh([str(BIN / "snakemake"), "--cores", "2", "-n", *SMK_TARGETS], wd)
-        smk = best_of([str(BIN / "snakemake"), "--cores", "2", *SMK_TARGETS], wd)
-        rep = best_of([str(BIN / "dvc"), "repro", *STAGES], wd)
+        print(f"project copy in {wd}; building the {'smoke' if args.small else 'default'} scale once "
+              f"(dvc repro {' '.join(stages)}) ...", flush=True)
+        print(f"  first dvc repro (reused recordings and shards): {setup(wd, args.small):.1f} s", flush=True)
+        targets = ["results/smoke/drift/metrics.json"] if args.small else SMK_TARGETS
+        smk_first = sh([str(BIN / "snakemake"), "--cores", "2", "-n", *targets], wd)
+        smk = best_of([str(BIN / "snakemake"), "--cores", "2", *targets], wd, repeats)
+        rep = best_of([str(BIN / "dvc"), "repro", *stages], wd, repeats)
+        if args.small:
+            print("\n| measurement (smoke scale, drift scene) | wall time |\n|---|---|")
+            print(f"| no-op `snakemake` | {smk[0]:.2f} s |\n| first `snakemake -n` after `dvc repro` | {smk_first:.2f} s |")
+            print(f"| no-op `dvc repro drift` | {rep[0]:.2f} s |")
+            return
 
         rig = root / "rig" / NEW
         t0 = time.perf_counter()

@@ -11,7 +11,7 @@ results/stability/integrators.png. The material is a soft silicone by default (t
 simulators' own default has no creep until a measured curve exists (params.yaml).
 
 Usage: python benchmarks/bench_integrators.py [--fractions 0.05 0.05] [--taus 0.0005 1.5]
-       [--out results/stability] [--quick]
+       [--out results/stability] [--quick] [--small]
 """
 
 from __future__ import annotations
@@ -180,9 +180,14 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--fractions", type=float, nargs="+", default=[0.05, 0.05])
     ap.add_argument("--taus", type=float, nargs="+", default=[0.0005, 1.5])
-    ap.add_argument("--out", type=Path, default=REPO / "results" / "stability")
+    ap.add_argument("--out", type=Path, default=None, help="default: results/stability (--small: a temporary folder)")
     ap.add_argument("--quick", action="store_true", help="500 Hz only, fewer substeps (for a check)")
+    ap.add_argument("--small", action="store_true", help="--quick with two integrators and one timing run, "
+                    "written to a temporary folder unless --out is given: a check that it runs")
     args = ap.parse_args(argv)
+    if args.small:
+        return _small(args)
+    args.out = args.out or REPO / "results" / "stability"
     prony = ve.Prony.from_params({"creep_fractions": args.fractions, "creep_tau_s": args.taus})
     t0 = time.perf_counter()
     kw = {"rates_hz": (500,), "substeps": (1, 2, 8), "repeats": 1} if args.quick else {}
@@ -195,6 +200,17 @@ def main(argv=None) -> None:
     plot(table, prony, args.out / "integrators.png")
     print((args.out / "integrators.md").read_text())
     print(f"written {args.out}/integrators.{{csv,md,png}} in {time.perf_counter() - t0:.1f} s")
+
+
+def _small(args) -> None:
+    import tempfile
+    with tempfile.TemporaryDirectory(prefix="tactilepipe-bench-integrators-") as tmp:
+        out = args.out or Path(tmp)
+        prony = ve.Prony.from_params({"creep_fractions": args.fractions, "creep_tau_s": args.taus})
+        table = error_table(prony, rates_hz=(500,), substeps=(1, 2), repeats=1, methods=("exponential", "euler"))
+        write_table(table, out / "integrators", "Pillar creep integrators (small check)", "{:.3g}")
+        plot(table, prony, out / "integrators.png")
+        print((out / "integrators.md").read_text())
 
 
 if __name__ == "__main__":

@@ -8,7 +8,7 @@ scale's and the smoke scale's, each mode in its own process (the pins are read w
 one thread each, one after the other. The width is the lever that let the default scale train
 portable: the rows show what each width costs in either mode.
 
-Usage: python benchmarks/bench_kernels.py [--steps 30]
+Usage: python benchmarks/bench_kernels.py [--steps 30] [--small]   (--small: 2 steps, smoke row only)
 """
 
 from __future__ import annotations
@@ -18,7 +18,6 @@ import multiprocessing as mp
 from pathlib import Path
 
 from tactilepipe.core.config import load_params
-from tactilepipe.tool.model.network import PAPER_WIDTH
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -34,7 +33,11 @@ def _throughput(args: tuple) -> tuple[float, dict]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=30)
+    ap.add_argument("--small", action="store_true", help="2 steps of the smoke row only: a check that it runs")
     args = ap.parse_args()
+    # imported here, not at the top: a spawned worker imports this module before it chooses its
+    # kernels, and portable kernels must be chosen before torch loads (network imports torch)
+    from tactilepipe.tool.model.network import PAPER_WIDTH
     ctx = mp.get_context("spawn")
     print("full model; each row at its scale's input size, depth, batch and width (the paper row: the "
           "default scale's with the paper's width)")
@@ -42,6 +45,8 @@ def main() -> None:
     default = load_params(REPO / "params.yaml")["tool_train"]
     rows = [("paper", {**default, "width": PAPER_WIDTH}), ("default", default),
             ("smoke", load_params(REPO / "params.yaml", {"scale": "smoke"})["tool_train"])]
+    if args.small:
+        rows, args.steps = rows[-1:], 2
     for scale, tt in rows:
         spec = ("full", tt["depth"], tt["image_size"], tt["batch_size"], tt["gam_channel_gate"], tt["width"], args.steps)
         rates = {}

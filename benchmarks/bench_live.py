@@ -9,7 +9,7 @@ default full model (results/default/tool_normal/models/full/best.pt when it exis
 one of the same shape: speed does not depend on the weights). Target: the camera rate in pairs
 per second, and at least 30 pairs/s under load, as `predict` gives.
 
-Usage: python benchmarks/bench_live.py [--checkpoint results/default/tool_normal/models/full/best.pt]
+Usage: python benchmarks/bench_live.py [--checkpoint results/default/tool_normal/models/full/best.pt] [--small]
 """
 
 from __future__ import annotations
@@ -32,12 +32,12 @@ MODE = "qvga60"
 FRAMES = 400
 
 
-def live_run(checkpoint: Path, sources: dict, log: Path, loaded: bool) -> dict:
+def live_run(checkpoint: Path, sources: dict, log: Path, loaded: bool, seconds: float = 60) -> dict:
     load = subprocess.Popen([sys.executable, "-c", LOAD.format(seconds=60)]) if loaded else None
     try:
         run = subprocess.run([sys.executable, "-m", "tactilepipe", "live", "--params", str(REPO / "params.yaml"),
                               "--checkpoint", str(checkpoint), "--left", sources["digit_left"], "--right",
-                              sources["digit_right"], "--mode", MODE, "--seconds", "60", "--log", str(log)],
+                              sources["digit_right"], "--mode", MODE, "--seconds", str(seconds), "--log", str(log)],
                              capture_output=True, text=True, cwd=REPO)
     finally:
         if load is not None:
@@ -55,8 +55,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--checkpoint", default=str(REPO / "results/default/tool_normal/models/full/best.pt"),
                     help="the model to run (default: the default scene's full model, when built)")
+    ap.add_argument("--small", action="store_true", help="a smoke-scale model and trial, 40 frames, 2 s, quiet "
+                    "only: a check that it runs")
     args = ap.parse_args()
-    p = load_params(REPO / "params.yaml")
+    p = load_params(REPO / "params.yaml", {"scale": "smoke"} if args.small else None)
+    n_frames, seconds, settings = (40, 2, (False,)) if args.small else (FRAMES, 60, (False, True))
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         session = tmp / "sim"
@@ -69,19 +72,19 @@ def main() -> None:
             frames = sorted((trial / sensor).glob("frame_*.png"))
             out = tmp / "cameras" / sensor
             out.mkdir(parents=True)
-            for k in range(FRAMES):
+            for k in range(n_frames):
                 cv2.imwrite(str(out / f"frame_{k:06d}.png"), from_layout(cv2.imread(str(frames[k % len(frames)]))))
             sources[sensor] = str(out / "frame_%06d.png")
         checkpoint = Path(args.checkpoint)
-        if not checkpoint.exists():
+        if args.small or not checkpoint.exists():
             checkpoint = untrained_checkpoint(p, tmp / "untrained.pt")
         fps = MODES[MODE][2]
-        print(f"checkpoint: {checkpoint}\ncameras: {FRAMES} frames per finger at {fps} fps ({MODE}); "
+        print(f"checkpoint: {checkpoint}\ncameras: {n_frames} frames per finger at {fps} fps ({MODE}); "
               f"predict: trial {spec.name}")
         print(f"\n{'':<10}{'live pairs/s':>14}{'latency ms':>12}{'compute ms':>12}{'skipped':>9}"
               f"{'predict pairs/s':>17}")
-        for loaded in (False, True):
-            r = live_run(checkpoint, sources, tmp / "live.csv", loaded)
+        for loaded in settings:
+            r = live_run(checkpoint, sources, tmp / "live.csv", loaded, seconds)
             ref = predict_rate(checkpoint, trial, None, loaded)
             print(f"{'loaded' if loaded else 'quiet':<10}{r['rate']:>14.1f}{r['latency']:>12.1f}{r['compute']:>12.1f}"
                   f"{r['skipped']:>9d}{ref:>17.1f}")

@@ -4,7 +4,7 @@ or dropped; kind, finger and frame drawn at random). Prints the share of trials 
 stays within one frame period of the clean offset (target >= 95 %), the share refused (an
 InputError naming the trial) and the share shifted silently (target: none).
 
-Usage: python benchmarks/bench_sync.py [--trials 48] [--seed 0]   (--trials 0: all of the scale)
+Usage: python benchmarks/bench_sync.py [--trials 48] [--seed 0] [--small]   (--trials 0: all of the scale)
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from tactilepipe.tool.formats.trials import open_trial
 from tactilepipe.tool.data.ingest import ingest_trial
 from tactilepipe.tool.formats.raw import SensorFrames
 
+REPO = Path(__file__).resolve().parents[1]
 KINDS = ("dim", "near_black", "dropped")
 
 
@@ -58,8 +59,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=48, help="trials sampled evenly from the plan (0: all)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--small", action="store_true", help="2 smoke-scale trials: a check that it runs")
     args = ap.parse_args()
-    p = load_params()
+    p = load_params(REPO / "params.yaml", {"scale": "smoke"} if args.small else None)
+    if args.small:
+        args.trials = 2
     plan = tsim.session_plan(p)
     if args.trials:
         plan = [plan[i] for i in np.unique(np.linspace(0, len(plan) - 1, args.trials).astype(int))]
@@ -88,7 +92,7 @@ def main() -> None:
             if outcome == "shifted":
                 print(f"  shifted: {spec.name} {kind} {finger} frame {k}: {clean} -> {got}")
     n = len(plan)
-    print(f"\n== Clock sync with one single-frame glitch per trial: {n} default-scale trials "
+    print(f"\n== Clock sync with one single-frame glitch per trial: {n} {'smoke' if args.small else 'default'}-scale trials "
           f"(of {len(tsim.session_plan(p))}), {time.perf_counter() - t0:.0f} s")
     print(f"within one frame period ({period * 1000:.1f} ms) of the clean offset: {counts['within'] / n:.1%}  "
           f"(target >= 95 %: {'met' if counts['within'] >= 0.95 * n else 'NOT met'})")

@@ -12,7 +12,7 @@
    results/default/tool_normal/models/full/best.pt is used when it exists; otherwise a freshly
    initialised model of the same variant, depth and input size (speed does not depend on weights).
 
-Usage: python benchmarks/bench_tool.py [--trials N] [--size 64]
+Usage: python benchmarks/bench_tool.py [--trials N] [--size 64] [--small]
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from bench_predict_load import untrained_checkpoint
 from tactilepipe.core.config import load_params
 from tactilepipe.tool import sim as tsim
 from tactilepipe.tool.data.dataset import build_tool_dataset
@@ -62,11 +63,15 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=4)
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--samples", type=int, default=2000)
+    ap.add_argument("--small", action="store_true", help="one smoke-scale trial, 20 rendered frames, 100 samples: "
+                    "a check that it runs")
     args = ap.parse_args()
-    p = load_params(REPO / "params.yaml", {"scale": "default"})
+    p = load_params(REPO / "params.yaml", {"scale": "smoke" if args.small else "default"})
+    if args.small:
+        args.trials, args.size, args.samples = 1, 32, 100
 
     print("\n== Simulator (one core)")
-    fps = render_fps(p, 300)
+    fps = render_fps(p, 20 if args.small else 300)
     print(f"rendered QVGA frames/s: {fps:,.0f}  (target >= 200: {'met' if fps >= 200 else 'NOT met'})")
 
     with tempfile.TemporaryDirectory(prefix="tactilepipe-bench-tool-") as tmp:
@@ -133,31 +138,13 @@ def main() -> None:
         torch.set_num_threads(2)
         checkpoint = REPO / "results/default/tool_normal/models/full/best.pt"
         if not checkpoint.exists():
-            checkpoint = _untrained_checkpoint(p, Path(tmp) / "untrained.pt")
+            checkpoint = untrained_checkpoint(p, Path(tmp) / "untrained.pt", p["tool_ingest"]["stored_size"])
         print(f"checkpoint: {checkpoint}")
         with open(Path(tmp) / "predictions.csv", "w") as sink:
             summary = stream_predictions(checkpoint, trials[0], "native", p, out=sink)
         rate = summary["sustained_pairs_per_s"]
         print(f"{summary['pairs']} pairs, median latency {summary['median_latency_ms']:.1f} ms, sustained {rate:.1f} pairs/s "
               f"(target >= 30: {'met' if rate >= 30 else 'NOT met'})")
-
-
-def _untrained_checkpoint(p: dict, path: Path) -> Path:
-    """A checkpoint of a freshly initialised default-scale full model, in the trainer's format."""
-    import dataclasses
-    import torch
-    from tactilepipe.tool.model.network import build_model
-    from tactilepipe.tool.model.checkpoint import CHECKPOINT_FORMAT
-    from tactilepipe.tool.model.train_config import TrainConfig
-    tt, size = p["tool_train"], p["tool_ingest"]["stored_size"]
-    cfg = TrainConfig.from_params(tt, variant="full", depth=tt["depth"], image_size=size, normalise="minmax",
-                                  seed=p["seed"])
-    model = build_model("full", tt["depth"], size, tt["gam_channel_gate"], tt["width"])
-    meta = {"variant": "full", "depth": tt["depth"], "image_size": size, "normalise": "minmax",
-            "label_stats": {"min": 0.0, "max": 30.0, "mean": 5.0, "std": 5.0}}
-    torch.save({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "config": dataclasses.asdict(cfg),
-                "meta": meta}, path)
-    return path
 
 
 def _timed(func) -> float:

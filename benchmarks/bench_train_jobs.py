@@ -7,7 +7,7 @@ This prints both, side by side, as frame pairs per second of training (forward, 
 step on random data at the default scale's input size, batch and depth), and their ratio: the
 setting behind ``tool_train.num_threads: 1`` (Snakemake then runs two training jobs with --cores 2).
 
-Usage: python benchmarks/bench_train_jobs.py [--variant full] [--steps 40]
+Usage: python benchmarks/bench_train_jobs.py [--variant full] [--steps 40] [--small]
 """
 
 from __future__ import annotations
@@ -68,8 +68,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--variant", default="full")
     ap.add_argument("--steps", type=int, default=40)
+    ap.add_argument("--small", action="store_true", help="2 steps at the smoke scale: a check that it runs")
     args = ap.parse_args()
-    tt = load_params(REPO / "params.yaml", {"scale": "default"})["tool_train"]
+    if args.small:
+        args.steps = 2
+    tt = load_params(REPO / "params.yaml", {"scale": "smoke" if args.small else "default"})["tool_train"]
     spec = (args.variant, tt["depth"], tt["image_size"], tt["batch_size"], tt["gam_channel_gate"], tt["width"], args.steps)
     ctx = mp.get_context("spawn")
     with ctx.Pool(1) as pool:

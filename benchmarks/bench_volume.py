@@ -6,7 +6,7 @@
    copy of the workflow: from nothing (simulation included) and from existing recordings.
    Target: <= 3 min on 2 cores.
 
-Usage: python benchmarks/bench_volume.py [--bags N] [--scale default] [--skip-scene]
+Usage: python benchmarks/bench_volume.py [--bags N] [--scale default] [--skip-scene] [--small]
 """
 
 from __future__ import annotations
@@ -102,7 +102,10 @@ def main() -> None:
     ap.add_argument("--bags", type=int, default=20)
     ap.add_argument("--scale", default="default")
     ap.add_argument("--skip-scene", action="store_true")
+    ap.add_argument("--small", action="store_true", help="2 smoke-scale bags, no scene: a check that it runs")
     args = ap.parse_args()
+    if args.small:
+        args.bags, args.scale, args.skip_scene = 2, "smoke", True
     with tempfile.TemporaryDirectory(prefix="tactilepipe-bench-") as tmp:
         bench_ingest(args.bags, args.scale, Path(tmp))
         if not args.skip_scene:

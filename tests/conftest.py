@@ -23,7 +23,7 @@ PARAMS_PATH = REPO / "params.yaml"
 # The modules whose tests read the shared smoke build (tests/integration/conftest.py).
 SMOKE_BUILD_MODULES = {"tests/integration/test_cluster.py", "tests/integration/test_workflow.py",
                        "tests/integration/test_portability.py", "tests/integration/test_read_audit.py",
-                       "tests/integration/test_report.py"}
+                       "tests/integration/test_report.py", "tests/integration/test_content_change.py"}
 SMOKE_BUILD_UNIT = "the smoke build"
 # The two longest units, handed out first so that neither waits behind the short ones: the DVC
 # workflow (its own smoke-scale project, then a chain of `dvc repro` runs), and the smoke build

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import yaml
 
-from tactilepipe.pipeline import codedeps, layout, stamps
+from tactilepipe.pipeline import codedeps, layout, manifest, stamps
 from tactilepipe.core.atomic import write_text
 from tactilepipe.core.config import changed_leaves, resolve, typed_like
 from tactilepipe.core.errors import TactilepipeError
@@ -102,6 +102,32 @@ def stamp_file(stage):
     write_text(path, text)
     _tell_snakemake_it_exists(path)
     return str(path)
+
+
+CONTENT_STAMPS = ".tactilepipe/content"
+
+
+@cache
+def content_stamp(scene, session, unit, files, output):
+    """An input of the job that ingests ``files`` (a tuple, of raw/<scene>/<session>) into
+    ``output``: a stamp of their content hashes, rewritten when one changes and dated when the
+    change reached the disk, so a file changed with its old time kept (cp -p, rsync -t, cp -a)
+    re-runs the job (pipeline/manifest.py). Local state, not versioned; a dry run writes nothing."""
+    name = f"{scene}/{session}/{unit}.json"
+    scratch = Path(_dry_run_scratch()) / "changed-content" / name if workflow.dryrun else None
+    path, change = manifest.update_stamp(f"{CONTENT_STAMPS}/{name}", _session_manifest(f"raw/{scene}/{session}"),
+                                         list(files), output, dry_run_copy=scratch)
+    if change:
+        print(f"{CONTENT_STAMPS}/{name}: {change}", file=sys.stderr, flush=True)
+    _tell_snakemake_it_exists(path)
+    return str(path)
+
+
+@cache
+def _session_manifest(folder):
+    found = manifest.SessionManifest(folder)
+    atexit.register(found.save)               # the hash cache is written once, as Snakemake exits
+    return found
 
 
 def _tell_snakemake_it_exists(path):
@@ -287,6 +313,13 @@ def tool_trial_input(w):
     if is_simulated(w.session):   # the simulator writes each trial folder whole; meta.json stands for it
         return [f"raw/tool/{w.session}/nano17.cal", f"{path}/meta.json"]
     return trial_files(path, fmt, f"raw/tool/{w.session}")
+
+
+def tool_trial_content(w):
+    """The content stamp of every file of a trial (a simulated trial's too) and its session facts."""
+    path, fmt = _tool_trial(w.session, w.trial)
+    return content_stamp("tool", w.session, w.trial, tuple(trial_files(path, fmt, f"raw/tool/{w.session}")),
+                         f"{RESULTS}/tool/shards/{w.session}/{w.trial}.parquet")
 
 
 @cache

@@ -29,6 +29,7 @@ rule tool_simulate:
 rule tool_ingest:
     input:
         trial=tool_trial_input,
+        content=tool_trial_content,
         code=stage_code("tool-ingest"),
         params=param_stamp("tool-ingest"),
     output:

@@ -40,6 +40,7 @@ STAGES = [  # (name, Snakemake targets); "{scale}" is written as DVC's ${scale},
     ("tool_models", ["{results}/tool_normal/metrics.json", "{results}/tool_shear/metrics.json"]),
 ]
 STAMP = re.compile(r"^results/[^/]+/params/[^/]+\.json$")   # a parameter stamp (common.smk param_stamp)
+CONTENT_STAMPS = ".tactilepipe/content"     # the ingest rules' content stamps (common.smk content_stamp)
 COMMAND = "snakemake --cores 2 --workflow-profile workflow/profiles/default"
 METRICS = {"metrics.json", "provenance.json"}
 UNCACHED_OUTS = {"runtime.json"}
@@ -161,6 +162,8 @@ def generate(params: dict) -> str:
             for f in map(str, j.input):
                 if STAMP.match(f):
                     continue                      # DVC reads the same values from params.yaml
+                if f.startswith(CONTENT_STAMPS + "/"):
+                    continue                      # DVC hashes the raw/ folders' content itself
                 if f.endswith(".py"):
                     code.add(f)
                 elif output_stage.get(f) == name:
