@@ -135,7 +135,7 @@ def main() -> None:
         denom = torch.sqrt(v / (1 - 0.999 ** 2)) + 1e-8
         unpinned.append(["unpinned torch.sqrt", digest([denom])])
         unpinned.append(["unpinned Adam update with torch.sqrt", digest([p - 2e-4 / (1 - 0.9 ** 2) * m / denom])])
-    print(json.dumps({"capability": kernels["aten_capability"], "ops": hasher.log, "unpinned": unpinned,
+    print(json.dumps({"capability": kernels["aten_capability"], "layers": kernels.get("layers"), "ops": hasher.log, "unpinned": unpinned,
                       "cpu_s": time.process_time()}))
 
 
