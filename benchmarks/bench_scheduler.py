@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -105,7 +106,9 @@ def scheduler_share(wd: Path, jobs: int, window: float, extra: list[str]) -> tup
     shutil.rmtree(wd / ".snakemake", ignore_errors=True)
     cmd = [str(BIN / "snakemake"), "--workflow-profile", str(PROFILE), "--cores", "2", "--quiet", "all", *extra]
     env = {**os.environ, "PYTHONPATH": str(REPO / "src")}
-    proc = subprocess.Popen(cmd, cwd=wd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    # its own process group, so the run and its sleeping jobs are stopped together when measured
+    proc = subprocess.Popen(cmd, cwd=wd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
     started = wd / "started"
     try:
         while not any(started.iterdir()):
@@ -116,10 +119,13 @@ def scheduler_share(wd: Path, jobs: int, window: float, extra: list[str]) -> tup
         while len(list(started.iterdir())) < jobs and proc.poll() is None and time.perf_counter() - t0 < window:
             time.sleep(0.05)
         cpu1, t1 = cpu_seconds(proc.pid), time.perf_counter()
-        proc.terminate()                                        # the rest of the jobs would only sleep
     finally:
+        # the rest of the jobs would only sleep; Snakemake's own SIGTERM handling waits for its
+        # running jobs and may start more, so the whole group is killed
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
         err = proc.communicate()[1]
-    if proc.returncode not in (0, -15, 1):                     # 1: Snakemake's exit when terminated
+    if proc.returncode not in (0, -signal.SIGKILL):
         raise SystemExit(f"snakemake failed ({proc.returncode}): {err[-2000:]}")
     return cpu1 - cpu0, t1 - t0, (cpu1 - cpu0) / (t1 - t0)
 

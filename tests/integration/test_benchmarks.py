@@ -18,6 +18,8 @@ pytestmark = [pytest.mark.integration, pytest.mark.slow]
 # each script and the rows it must print (regular expressions, each matched in its output)
 ROWS = {
     "bench_dvc.py": [r"\| no-op `snakemake` \| [0-9.]+ s \|", r"\| no-op `dvc repro drift` \| [0-9.]+ s \|"],
+    "bench_gemm.py": [r"all conv \+ linear layers +[0-9.]+ +[0-9.]+ +[0-9.]+ +[0-9.]+ +[0-9.]+",
+                      r"training step \(fwd, bwd, Adam\) +[0-9.]+ +[0-9.]+ +[0-9.]+ +[0-9.]+ +[0-9.]+"],
     "bench_integrators.py": [r"\| exponential \| 500 \| 1 \|", r"\| euler \| 500 \| 2 \|"],
     "bench_kernels.py": [r"smoke +8 +[0-9]+ +[0-9]+ +[0-9.]+", r"portable kernels in force: .*'mode': 'portable'"],
     "bench_live.py": [r"quiet +[0-9.]+ +[0-9.]+ +[0-9.]+ +[0-9]+ +[0-9.]+"],
