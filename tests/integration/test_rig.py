@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -171,7 +172,12 @@ def test_live_on_a_recorded_trial_gives_the_estimates_of_predict(rig, tmp_path):
     assert live.returncode == 0, live.stderr
     logged = pd.read_csv(tmp_path / "live" / "estimates.csv")
     both = logged.merge(predicted, on=["left_frame", "right_frame"])
-    assert len(both) >= 0.9 * (len(predicted) - 1), (len(both), len(predicted))
+    # every estimate live logged is one of predict's frame pairs; how many it reached depends on
+    # this machine's load (it skips frames to keep up), and it says how many it skipped
+    per_camera = re.search(r"frames skipped (\{.*?\})", live.stdout).group(1)       # {'digit_left': n, ...}
+    skipped = max(int(n) for n in re.findall(r": (\d+)", per_camera))
+    assert len(both) == len(logged) >= 10, (len(both), len(logged), len(predicted))
+    assert len(logged) + skipped >= len(predicted) - 2, (len(logged), skipped, len(predicted))
     assert both["prediction_n"].std() > 1e-3        # the estimates move with the frames: 100x the tolerance below
     np.testing.assert_allclose(both["estimate_n"], both["prediction_n"], atol=1e-5)
     assert "frames skipped" in live.stdout and "stopped early" in live.stdout     # the replay ended

@@ -132,13 +132,14 @@ def open_capture(source: str, mode: str) -> cv2.VideoCapture:
 class CameraStats:
     frames: int = 0
     dropped: int = 0                 # frames the sensor sent that never reached us (gaps in the stamps)
+    late: int = 0                    # a file's frames read late (a gap in the stamps, no frame lost)
     timeouts: int = 0                # reads that failed or took longer than READ_TIMEOUT_S
     lost: str = ""                   # why the camera stopped delivering, if it did
     opened_host_ns: int = 0
     fps: float = 0.0                 # measured over the frames read
 
     def as_dict(self) -> dict:
-        return {"frames": self.frames, "dropped_frames": self.dropped, "read_timeouts": self.timeouts,
+        return {"frames": self.frames, "dropped_frames": self.dropped, "late_reads": self.late, "read_timeouts": self.timeouts,
                 "lost": self.lost, "opened_host_ns": self.opened_host_ns, "measured_fps": round(self.fps, 3)}
 
 
@@ -146,7 +147,8 @@ class CameraStats:
 class Camera(DeviceReader):
     """One camera read on its own thread: each frame, turned into the layout's orientation, is
     handed to ``on_frame(index, host_ns, frame)`` with the host time (ns since 1970) at which the
-    read returned it. Gaps in those times longer than 1.5 periods are counted as dropped frames."""
+    read returned it. Gaps in those times longer than 1.5 periods are counted as dropped frames (as
+    late reads for a file, which loses none)."""
     name: str
     source: str
     mode: str
@@ -190,7 +192,10 @@ class Camera(DeviceReader):
                     continue
             failures = 0
             if last_ns is not None and host_ns - last_ns > 1.5 * period_ns:
-                self.stats.dropped += int(round((host_ns - last_ns) / period_ns)) - 1
+                if paced:               # a file loses no frame: the gap is this thread's own delay
+                    self.stats.late += 1
+                else:
+                    self.stats.dropped += int(round((host_ns - last_ns) / period_ns)) - 1
             last_ns = host_ns
             index = self.stats.frames
             self.stats.frames += 1
