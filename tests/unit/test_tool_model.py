@@ -506,3 +506,38 @@ def test_the_like_for_like_baselines_see_what_their_variant_sees():
         pytest.approx(pred["one_finger_rmse_linear"])
     assert not np.allclose(baselines(labels, right_changed, rest, split)["tactile_rmse_linear"],
                            pred["tactile_rmse_linear"])
+
+def test_the_optimizer_is_torchs_fused_adam_without_importing_dynamo():
+    """make_optimizer's Adam steps exactly as torch.optim.Adam(fused=True), state included, and
+    neither building nor stepping it imports torch._dynamo (seconds of CPU per training process)."""
+    code = """
+import sys, torch
+from tactilepipe.tool.model.train import make_optimizer
+torch.manual_seed(0)
+m = torch.nn.Linear(16, 3)
+opt = make_optimizer(m, 1e-3)
+for i in range(5):
+    opt.zero_grad(set_to_none=True); m(torch.randn(8, 16)).pow(2).sum().backward(); opt.step()
+    opt.param_groups[0]["lr"] *= 0.5
+opt.load_state_dict(opt.state_dict())
+print("torch._dynamo" in sys.modules)
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False"]
+
+    from tactilepipe.tool.model.train import make_optimizer
+    weights, states = [], []
+    for build in (lambda m: make_optimizer(m, 1e-3), lambda m: torch.optim.Adam(m.parameters(), lr=1e-3, fused=True)):
+        torch.manual_seed(0)
+        m = torch.nn.Linear(16, 3)
+        opt = build(m)
+        for i in range(5):
+            opt.zero_grad(set_to_none=True)
+            m(torch.randn(8, 16)).pow(2).sum().backward()
+            opt.step()
+            opt.param_groups[0]["lr"] *= 0.5
+        weights.append(m.weight.detach().clone())
+        states.append(opt.state_dict())
+    assert torch.equal(weights[0], weights[1])
+    assert all(torch.equal(a["exp_avg_sq"], b["exp_avg_sq"]) for a, b in zip(states[0]["state"].values(),
+                                                                            states[1]["state"].values()))

@@ -16,8 +16,10 @@ KERNEL_VARIABLES = ("ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA", "DNNL_MAX_CPU_I
 
 
 def environment() -> dict:
-    """Package versions and the CPU instruction set the numerical kernels chose (the same code and
-    data give slightly different trained models on different instruction sets)."""
+    """Package versions, the CPU and its vector extensions, and the settings that choose the
+    numerical kernels (the same code and data give slightly different trained models on different
+    instruction sets). Without importing torch (seconds per process): the kernels a model trained
+    with are in its run's eval.json; ``torch_cpu_capability`` gives torch's choice here."""
     versions = {}
     for name in PACKAGES:
         try:
@@ -26,12 +28,16 @@ def environment() -> dict:
             versions[name] = None
     env = {"python": platform.python_version(), "packages": versions, "machine": platform.machine(),
            "cpu": _cpu(), "kernel_settings": {k: os.environ.get(k) for k in KERNEL_VARIABLES}}
+    return env
+
+
+def torch_cpu_capability() -> str | None:
+    """The vector code torch's kernels chose on this machine (imports torch)."""
     try:
         import torch
-        env["torch_cpu_capability"] = torch.backends.cpu.get_cpu_capability()
     except ImportError:
-        env["torch_cpu_capability"] = None
-    return env
+        return None
+    return torch.backends.cpu.get_cpu_capability()
 
 
 def _cpu() -> dict:

@@ -34,7 +34,7 @@ from datetime import date
 from pathlib import Path
 
 from tactilepipe.core.atomic import write_json
-from tactilepipe.core.environment import environment, git_state
+from tactilepipe.core.environment import environment, git_state, torch_cpu_capability
 from tactilepipe.core.errors import InputError, TactilepipeError
 from tactilepipe.core.hashing import file_sha256
 from tactilepipe.tool.scenes import TOOL_SCENES
@@ -105,7 +105,7 @@ def machine_kind() -> dict:
     cpu = env["cpu"]
     return {"vendor": cpu.get("vendor"), "cpu": cpu["model"], "family": cpu.get("family"),
             "model": cpu.get("model_number"), "vector_extensions": cpu["vector_extensions"],
-            "torch_cpu_capability": env["torch_cpu_capability"]}
+            "torch_cpu_capability": torch_cpu_capability()}
 
 
 def describe(kind: dict) -> str:
