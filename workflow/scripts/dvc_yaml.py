@@ -18,6 +18,7 @@ a name and the Snakemake targets its command builds (one stage per scene step). 
 from __future__ import annotations
 
 import argparse
+import atexit
 import difflib
 import io
 import json
@@ -39,7 +40,8 @@ STAGES = [  # (name, Snakemake targets); "{scale}" is written as DVC's ${scale},
     ("tool_data", ["tool_data"]),
     ("tool_models", ["{results}/tool_normal/metrics.json", "{results}/tool_shear/metrics.json"]),
 ]
-STAMP = re.compile(r"^results/[^/]+/params/[^/]+\.json$")   # a parameter stamp (common.smk param_stamp)
+# a parameter stamp (common.smk param_stamp), or a dry run's scratch copy of a changed one
+STAMP = re.compile(r"^(results/[^/]+/params|/.*/changed-params)/[^/]+\.json$")
 CONTENT_STAMPS = ".tactilepipe/content"     # the ingest rules' content stamps (common.smk content_stamp)
 COMMAND = "snakemake --cores 2 --workflow-profile workflow/profiles/default"
 METRICS = {"metrics.json", "provenance.json"}
@@ -66,9 +68,12 @@ def build_jobs(targets: list[str]):
         wapi.dag(DAGSettings(targets=set(targets), forceall=True))
         # The public API plans and runs; the plan alone is on the workflow object (pinned version).
         wf = wapi._workflow
+        # planned as a dry run, so the workflow writes no stamp (a changed one goes to its scratch folder)
+        wf.__class__ = type("PlanOnly", (type(wf),), {"dryrun": property(lambda self: True)})
         wf._prepare_dag(forceall=True, ignore_incomplete=True, lock_warn_only=True, nolock=True)
         wf._build_dag()
         dag = wf.dag
+        atexit.unregister(wf.globals["_print_estimate_after_dry_run"])    # that is for a user's dry run
         return list(dag.jobs), dag.dependencies
 
 
@@ -162,7 +167,7 @@ def generate(params: dict) -> str:
             for f in map(str, j.input):
                 if STAMP.match(f):
                     continue                      # DVC reads the same values from params.yaml
-                if f.startswith(CONTENT_STAMPS + "/"):
+                if f.startswith(CONTENT_STAMPS + "/") or "/changed-content/" in f:
                     continue                      # DVC hashes the raw/ folders' content itself
                 if f.endswith(".py"):
                     code.add(f)
