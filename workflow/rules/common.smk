@@ -108,19 +108,32 @@ CONTENT_STAMPS = ".tactilepipe/content"
 
 
 @cache
-def content_stamp(scene, session, unit, files, output):
+def content_stamp(scene, session, unit, files, output, list_files=None):
     """An input of the job that ingests ``files`` (a tuple, of raw/<scene>/<session>) into
     ``output``: a stamp of their content hashes, rewritten when one changes and dated when the
     change reached the disk, so a file changed with its old time kept (cp -p, rsync -t, cp -a)
-    re-runs the job (pipeline/manifest.py). Local state, not versioned; a dry run writes nothing."""
+    re-runs the job (pipeline/manifest.py). Local state, not versioned; a dry run writes nothing.
+    ``list_files`` lists them again once they exist, where the list comes from the disk."""
     name = f"{scene}/{session}/{unit}.json"
     scratch = Path(_dry_run_scratch()) / "changed-content" / name if workflow.dryrun else None
-    path, change = manifest.update_stamp(f"{CONTENT_STAMPS}/{name}", _session_manifest(f"raw/{scene}/{session}"),
-                                         list(files), output, dry_run_copy=scratch)
+    stamp, found = f"{CONTENT_STAMPS}/{name}", _session_manifest(f"raw/{scene}/{session}")
+    path, change = manifest.update_stamp(stamp, found, list(files), output, dry_run_copy=scratch)
     if change:
         print(f"{CONTENT_STAMPS}/{name}: {change}", file=sys.stderr, flush=True)
+    if not workflow.dryrun and manifest.holds_absent(path):
+        _STAMPS_OF_ABSENT_FILES.append((stamp, found, list_files or (lambda: files), output))
     _tell_snakemake_it_exists(path)
     return str(path)
+
+
+# Stamps of files that did not exist yet when the run planned its jobs (a session this run
+# simulates). Recorded once the run has made them, so the first edit after this run is a change.
+_STAMPS_OF_ABSENT_FILES = []
+
+
+onsuccess:
+    for stamp, found, list_files, output in _STAMPS_OF_ABSENT_FILES:
+        manifest.update_stamp(stamp, found, list(list_files()), output)
 
 
 @cache
@@ -317,9 +330,11 @@ def tool_trial_input(w):
 
 def tool_trial_content(w):
     """The content stamp of every file of a trial (a simulated trial's too) and its session facts."""
-    path, fmt = _tool_trial(w.session, w.trial)
-    return content_stamp("tool", w.session, w.trial, tuple(trial_files(path, fmt, f"raw/tool/{w.session}")),
-                         f"{RESULTS}/tool/shards/{w.session}/{w.trial}.parquet")
+    def list_files():
+        path, fmt = _tool_trial(w.session, w.trial)
+        return tuple(trial_files(path, fmt, f"raw/tool/{w.session}"))
+    return content_stamp("tool", w.session, w.trial, list_files(), f"{RESULTS}/tool/shards/{w.session}/{w.trial}.parquet",
+                         list_files)
 
 
 @cache

@@ -102,6 +102,15 @@ def stamp_text(manifest: SessionManifest, files: list[str]) -> tuple[str, dict]:
     return text, states
 
 
+def holds_absent(stamp: str | Path) -> bool:
+    """Whether the content stamp records a file as absent (a session not yet written when the run
+    planned its jobs): the workflow records such stamps again after a successful run."""
+    try:
+        return None in json.loads(Path(stamp).read_text())["files"].values()
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return False
+
+
 def update_stamp(stamp: str | Path, manifest: SessionManifest, files: list[str], output: str | Path,
                  dry_run_copy: str | Path | None = None) -> tuple[Path, str | None]:
     """Bring the content stamp ``stamp`` of ``files``, an input of the job that writes ``output``,
