@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SNAKEMAKE := $(BIN)/snakemake --cores 2 --workflow-profile workflow/profiles/default
 
-.PHONY: run test test-unit test-slurm smoke regimes bench clean-results pull dvc.yaml schema study000-import study000 study000-published
+.PHONY: run test test-all test-unit test-slurm smoke regimes bench clean-results pull dvc.yaml schema study000-import study000 study000-published
 
 $(STAMP): requirements.txt pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -36,8 +36,11 @@ study000: $(STAMP)  ## unpack, ingest, train the full model under both protocols
 study000-published: $(STAMP)  ## the published weights over every frame (contaminated: a check of preprocessing)
 	cd studies/000 && PATH=$(CURDIR)/$(BIN):$$PATH dvc repro published
 
-test: $(STAMP)  ## the whole test suite (unit + smoke-scale integration through real Snakemake), on 2 workers
-	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest -n 2
+test: $(STAMP)  ## the test suite CI runs (unit + smoke-scale integration through real Snakemake), on 2 workers
+	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest -n 2 -m "not extended"
+
+test-all: $(STAMP)  ## every test: also the `extended` ones and both emulated CPUs (about an hour on 2 cores)
+	PATH=$(CURDIR)/$(BIN):$$PATH TACTILEPIPE_QEMU_CPUS=all $(BIN)/pytest -n 2
 
 test-unit: $(STAMP)  ## the quick loop: unit tests not marked slow (no model trained beyond a few steps), on 2 workers
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/pytest -n 2 -m "not slow" tests/unit

@@ -9,7 +9,11 @@ temporary git repository with a local-directory remote, at the smoke scale:
 3. sharing: `dvc push`, a fresh `git clone` + `dvc pull` is byte-identical and Snakemake has
    nothing to do;
 4. plots: `dvc plots show` (offline) and `dvc plots diff` between two commits.
-(`snakemake --report`: tests/integration/test_report.py.)"""
+(`snakemake --report`: tests/integration/test_report.py.)
+
+`make test` (CI) runs the volume and drift sessions, sharing, plots and code edits; the tool
+session, the experiments, `tactilepipe diff` on a retrained build and the clone checks that each
+retrain models or pull a whole clone again are `extended` (`make test-all`)."""
 
 from __future__ import annotations
 
@@ -74,12 +78,18 @@ def repo(tmp_path_factory) -> dict:
     wd.mkdir()
     copy_project(wd, scale="smoke")
     shutil.copy(REPO / ".gitignore", wd / ".gitignore")
-    # two of the four model variants: the new tool session below retrains every run of the tool
-    # scenes, and these two are enough to show it (the reports do not re-train: no model re-runs)
+    # two of the four model variants on the two repeats, no leave-one-tool-out and no sweep runs:
+    # the new tool session and the learning-rate experiment below retrain every run of the tool
+    # scenes, and these 8 show it (the smoke build trains the others: test_workflow.py). dvc.yaml
+    # is generated again for these parameters (`make dvc.yaml`): without loto, no loto figure
     params = (wd / "params.yaml").read_text()
-    every = re.compile(r"^  variants: all .*$", re.M)
-    assert len(every.findall(params)) == 1
-    (wd / "params.yaml").write_text(every.sub(f"  variants: {VARIANTS}", params))
+    for pattern, line in ((r"^  variants: all .*$", f"  variants: {VARIANTS}"), (r"^  loto: true ", "  loto: false "),
+                          (r"sweep: \[\{depth: 18, image_size: 8\}\]", "sweep: []")):
+        assert len(re.findall(pattern, params, flags=re.M)) == 1, pattern
+        params = re.sub(pattern, line, params, flags=re.M)
+    (wd / "params.yaml").write_text(params)
+    run([str(BIN / "python"), "workflow/scripts/dvc_yaml.py"], wd)
+    assert "loto.png" not in (wd / "dvc.yaml").read_text()
     build(wd)
     git(wd, "init", "-q")
     git(wd, "config", "user.email", "test@example.com")
@@ -210,6 +220,7 @@ def new_tool_session(repo, new_session) -> dict:
     return {**taken, "old_shards": old_shards, "n_new": n_new}
 
 
+@pytest.mark.extended
 def test_new_tool_session_reruns_only_the_tool_stages_and_ingests_only_new_trials(repo, new_tool_session):
     wd, out = repo["wd"], new_tool_session["out"]
     assert ran_stages(out) == {"tool_data", "tool_models"}, out[-3000:]
@@ -218,8 +229,8 @@ def test_new_tool_session_reruns_only_the_tool_stages_and_ingests_only_new_trial
     counts = job_counts(out)
     assert new_tool_session["n_new"] >= 12
     assert counts["tool_ingest"] == new_tool_session["n_new"], counts          # only the new trials
-    # every run of both scenes: 2 variants x 2 repeats, 3 tools left out in turn, 1 sweep run
-    assert counts["tool_dataset"] == 2 and counts["tool_train"] == 2 * (2 * 2 + 3 + 1) and "tool_simulate" not in counts
+    # every run of both scenes: 2 variants x 2 repeats
+    assert counts["tool_dataset"] == 2 and counts["tool_train"] == 2 * 2 * 2 and "tool_simulate" not in counts
     for name, (mtime, data) in new_tool_session["old_shards"].items():         # earlier shards untouched
         p = results(wd) / "tool/shards/sim-smoke" / name
         assert p.stat().st_mtime_ns == mtime and p.read_bytes() == data, name
@@ -233,7 +244,7 @@ def test_new_tool_session_reruns_only_the_tool_stages_and_ingests_only_new_trial
 
 
 @pytest.fixture(scope="module")
-def new_drift_session(repo, new_tool_session) -> dict:
+def new_drift_session(repo, new_session) -> dict:
     """Step 1 for the drift scene: a new 30-min drift experiment is copied in and analysed instead
     of the simulated one."""
     taken = take_in_session(repo, "drift", NEW_DRIFT, [], 'drift_session: "sim-{scale}"',
@@ -256,6 +267,7 @@ def test_new_drift_session_reruns_only_the_drift_stage(repo, new_drift_session):
     assert "up to date" in dvc(wd, "status").stdout.lower()
 
 
+@pytest.mark.extended
 def test_experiments_rerun_only_the_stages_of_the_changed_params(repo, new_session):
     wd = repo["wd"]
     # the tool report without one ablation: its stage re-runs, but no model trains again
@@ -288,6 +300,7 @@ def test_experiments_rerun_only_the_stages_of_the_changed_params(repo, new_sessi
     assert _planned_rules(wd) == set()
 
 
+@pytest.mark.extended
 def test_diff_tells_a_retrained_model_from_noise_and_fails_on_a_regression(repo, new_session):
     wd = repo["wd"]
     tp = [str(BIN / "tactilepipe"), "diff"]
@@ -315,8 +328,7 @@ def test_diff_tells_a_retrained_model_from_noise_and_fails_on_a_regression(repo,
     assert _planned_rules(wd) == set()
 
 
-def test_push_clone_pull_is_byte_identical_and_snakemake_has_nothing_to_do(repo, new_session, new_tool_session,
-                                                                          new_drift_session):
+def test_push_clone_pull_is_byte_identical_and_snakemake_has_nothing_to_do(repo, new_session, new_drift_session):
     wd, clone = repo["wd"], repo["root"] / "clone"
     dvc(wd, "push")
     assert any(repo["remote"].rglob("*"))
@@ -358,6 +370,7 @@ def test_plots_show_offline_and_diff_between_commits(repo, new_session):
     assert len(images) >= 2 * len(declared)
 
 
+@pytest.mark.extended
 def test_marking_pulled_results_refuses_when_content_differs(repo, new_session):
     """A pulled clone whose code differs from what made the results: nothing is marked, and
     Snakemake still plans the rules that run the edited module."""
@@ -372,6 +385,7 @@ def test_marking_pulled_results_refuses_when_content_differs(repo, new_session):
     assert "drift_report" in planned
 
 
+@pytest.mark.extended
 def test_a_parameter_change_reruns_its_rules_without_snakemake_records(repo, new_session):
     """Where Snakemake has no record of earlier runs (a new machine, a deleted .snakemake/), a
     parameter change still re-runs exactly the rules that read it: the rules' parameter stamps
@@ -423,7 +437,8 @@ def _stale_stages(wd: Path) -> set[str]:
 
 
 @pytest.mark.parametrize("module, rules, stages, rewritten", EDITS, ids=[e[0] for e in EDITS])
-def test_editing_a_module_reruns_exactly_the_rules_that_run_it(repo, new_session, module, rules, stages, rewritten):
+def test_editing_a_module_reruns_exactly_the_rules_that_run_it(repo, new_session, new_drift_session, module, rules, stages,
+                                                              rewritten):
     # starts clean: every test before this one leaves the project up to date, and asserts it
     wd = repo["wd"]
     path = wd / "src/tactilepipe" / module

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import pytest
 
-from support.emulation import QEMU_CPUS, require_qemu, under
+from support.emulation import SUITE_CPUS, require_qemu, under
 from support.project import ENV, REPO
 
 pytestmark = pytest.mark.slow
@@ -72,11 +72,10 @@ def host() -> dict:
 
 
 # The suite probes under the Intel model (another vendor than the AMD machines met so far, about 5
-# CPU-minutes); TACTILEPIPE_OPS_CPUS=all adds EPYC-Rome (it passed there too: docs/reproducibility.md).
-OPS_CPUS = QEMU_CPUS if os.environ.get("TACTILEPIPE_OPS_CPUS") == "all" else QEMU_CPUS[:1]
+# CPU-minutes); TACTILEPIPE_QEMU_CPUS=all adds EPYC-Rome (support/emulation.py).
 
 
-@pytest.mark.parametrize("cpu", OPS_CPUS)
+@pytest.mark.parametrize("cpu", SUITE_CPUS)
 def test_every_op_of_the_portable_path_gives_the_same_bytes_under_emulation(host: dict, cpu: str):
     qemu = require_qemu()
     ops = {label.split(" ")[-1] for label, _ in host["ops"]}

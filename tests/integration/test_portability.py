@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from support.emulation import QEMU_CPUS, emulated_kind, emulator, require_qemu, under
+from support.emulation import SUITE_CPUS, emulated_kind, emulator, require_qemu, under
 from support.project import BIN, ENV, REPO, SMOKE, results
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.tool.report import portability
@@ -174,7 +174,7 @@ def test_emulated_intel_and_amd_cpus_train_the_recorded_bytes(smoke_build: Path,
     qemu = require_qemu()
     recorded = json.loads(RECORD.read_text())["runs"][EMULATED_RUN]
     inherited = {k: v for k, v in ENV.items() if k not in EMULATED_VARIABLES}
-    for cpu in QEMU_CPUS:
+    for cpu in SUITE_CPUS:            # Haswell-v4; with TACTILEPIPE_QEMU_CPUS=all EPYC-Rome too
         start = _cpu_seconds()
         kind = emulated_kind(qemu, cpu, {**inherited, "PYTHONPATH": str(smoke_build / "src")})
         # the emulation presents another CPU than any real kind recorded: AVX2 and FMA, no AVX-512

@@ -173,6 +173,7 @@ def test_bad_config_stops_before_any_job(tmp_path: Path, override, expected):
     assert not (wd / "results").exists() and not (wd / "raw").exists()
 
 
+@pytest.mark.extended
 def test_dvc_repro_builds_a_scene_from_nothing(tmp_path: Path):
     """`dvc repro <stage>` in a fresh git + DVC project runs the stage and the ones it needs, in
     order, and records them. (The whole graph's `dvc repro` runs in test_dvc_workflow.py, over the

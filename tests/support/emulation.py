@@ -16,6 +16,9 @@ from pathlib import Path
 import pytest
 
 QEMU_CPUS = ("Haswell-v4", "EPYC-Rome")
+# Each emulated run costs minutes of CPU: the suite (`make test`, CI) emulates Intel Haswell only;
+# TACTILEPIPE_QEMU_CPUS=all adds AMD EPYC-Rome (`make test-all` sets it)
+SUITE_CPUS = QEMU_CPUS if os.environ.get("TACTILEPIPE_QEMU_CPUS") == "all" else QEMU_CPUS[:1]
 
 
 def require_qemu() -> str:

@@ -8,8 +8,16 @@ from tactilepipe.cli.common import run_parallel
 from tactilepipe.cli.registry import arg, command
 
 
+# The drift rig is the lift rig's sensor: the simulator reads the sensor's keys of simulate_volume,
+# not the lift's, so a change of grip or container re-simulates the lifts only.
 @command("drift-simulate", "write the simulated drift session (ROS1 bags and session.json)",
-         params=("seed", "simulate_drift", "simulate_volume"),
+         params=("seed", "simulate_drift", "simulate_volume.noise_std_n", "simulate_volume.bias_residual_std_n",
+                 "simulate_volume.drift_inf_n", "simulate_volume.drift_per_kg_n", "simulate_volume.drift_tau_s",
+                 "simulate_volume.contact_tilt_std_deg", "simulate_volume.pillar_height_steps_mm",
+                 "simulate_volume.pillar_pitch_mm", "simulate_volume.pillar_travel_mm",
+                 "simulate_volume.pillar_normal_stiffness_n_per_mm",
+                 "simulate_volume.pillar_tangential_stiffness_n_per_mm", "simulate_volume.creep_fractions",
+                 "simulate_volume.creep_tau_s", "simulate_volume.creep_integrator", "simulate_volume.creep_substeps"),
          args=(arg("--out-dir", required=True, help="session folder, e.g. raw/drift/sim-default"),
                arg("--lifts", nargs="*", help="only these recordings (default: the whole session)"),
                arg("--jobs", type=int, default=1, help="worker processes (default 1)")))
