@@ -14,8 +14,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from tactilepipe.core.errors import ConfigError
-
 BASELINES = ("mean_predictor", "tactile_rmse_linear", "rest_frame_rmse_linear", "one_finger_rmse_linear")
 
 
@@ -69,17 +67,3 @@ DEPTHS: dict[int, tuple[str, list[int]]] = {
     50: ("bottleneck", [3, 4, 6, 3]),
     101: ("bottleneck", [3, 4, 23, 3]),
 }
-
-ALL = "all"
-
-
-def chosen_variants(setting: str | list[str], tool_variants: dict) -> list[str]:
-    """The variants ``tool_train.variants`` asks for: every variant of ``tool_variants`` (``all``, in
-    its order) or the ones listed, each of which must be defined."""
-    if setting == ALL:
-        return list(tool_variants)
-    unknown = [v for v in setting if v not in tool_variants]
-    if unknown:
-        raise ConfigError(f"tool_train.variants: unknown variant(s) {unknown} (tool_variants defines "
-                          f"{', '.join(tool_variants)}; or '{ALL}')")
-    return list(setting)
