@@ -3,7 +3,7 @@ default job-rate setting, side by side.
 
 A synthetic workflow in a temporary folder stands for the training phase of `make run`: many
 ready jobs, two running at a time (`--cores 2`, one thread each), each with the input list of a
-real training job (the tool-train stage's source files, its parameter stamp, the data set's four
+real training job (the tool-train stage's source files, its run's parameter stamp, the data set's four
 files and a split file) and a body that only sleeps, so all CPU time the Snakemake process spends
 is the scheduler's. Its CPU seconds (user + system, /proc/<pid>/stat) are read over a window from the first job's
 start, while the other jobs wait ready, and divided by the wall time; then the run is stopped.
@@ -48,14 +48,14 @@ JOBS = {jobs!r}
 rule all:
     input: [f"out/{{scene}}/{{run}}.done" for scene, run in JOBS]
 
-# as the project's tool_train: its run's spec evaluated from the run name (params and split),
-# its declared resources
+# as the project's tool_train: its run's spec evaluated from the run name (its split), its own
+# parameter stamp, its declared resources
 rule train:
     input:
         data=DATA,
         split=lambda w: f"splits/{{run_names.run_spec(TT, w.run)[1]}}.json",
         code=CODE,
-        params="params/tool-train.json",
+        params="params/tool-train/{{run}}.json",
     output: "out/{{scene}}/{{run}}.done"
     params: spec=lambda w: run_names.run_spec(TT, w.run)
     threads: 1
@@ -89,9 +89,10 @@ def make_workflow(wd: Path, jobs: list[tuple[str, str]], seconds: float) -> int:
     from tactilepipe.core.config import load_params
     from tactilepipe.tool import runs as run_names
     tt = load_params(REPO / "params.yaml", {"scale": "default"})["tool_train"]
+    (wd / "params" / "tool-train").mkdir()
     for _, run in jobs:
         (wd / "splits" / f"{run_names.run_spec(tt, run)[1]}.json").write_text("{}")
-    shutil.copy(REPO / "results/default/params/tool-train.json", wd / "params/tool-train.json")
+        (wd / "params" / "tool-train" / f"{run}.json").write_text("{}")      # a run's stamp: read for its time only
     (wd / "Snakefile").write_text(SNAKEFILE.format(params=str(REPO / "params.yaml"), code=code, jobs=jobs,
                                                    seconds=seconds))
     return len(code) + 6

@@ -152,8 +152,8 @@ def test_device_cuda_without_cuda_is_one_clear_error(tiny_data, tmp_path):
     root, split, _ = tiny_data
     proc = run([str(BIN / "tactilepipe"), "tool-train", "--params", str(REPO / "params.yaml"), "--scale", "smoke",
                 "--override", json.dumps({"tool_train": {"device": "cuda"}}), "--scene", "tool_normal",
-                "--variant", "full", "--data-dir", str(root), "--split", str(split), "--depth", "18",
-                "--image-size", "32", "--out-dir", str(tmp_path / "out"), "--quiet"], tmp_path, check=False)
+                "--run", "full", "--data-dir", str(root), "--split", str(split),
+                "--out-dir", str(tmp_path / "out"), "--quiet"], tmp_path, check=False)
     assert proc.returncode == 2
     assert proc.stderr.strip() == "tactilepipe tool-train: error: device 'cuda' requested but CUDA is not available"
     assert not (tmp_path / "out" / "best.pt").exists()
@@ -193,8 +193,8 @@ def test_the_cli_hands_device_and_amp_to_the_trainer(tiny_data, tmp_path, monkey
     code = cli.main(["tool-train", "--params", str(REPO / "params.yaml"), "--scale", "smoke", "--override",
                      json.dumps({"tool_train": {"device": "cuda", "amp": False, "kernels": "native"}}),
                      "--scene", "tool_normal",
-                     "--variant", "full", "--data-dir", str(root), "--split", str(split), "--depth", "18",
-                     "--image-size", "32", "--out-dir", str(tmp_path / "out"), "--quiet"])
+                     "--run", "full", "--data-dir", str(root), "--split", str(split),
+                     "--out-dir", str(tmp_path / "out"), "--quiet"])
     assert code == 2
     assert seen["cfg"].device == "cuda" and seen["cfg"].amp is False and seen["cfg"].kernels == "native"
 

@@ -81,9 +81,8 @@ def _retrain(build: Path, out: Path, kernels: str, env: dict, num_threads: int =
     emulator's command)."""
     override = {"tool_train": {"kernels": kernels, "num_threads": num_threads}}
     cmd = [*prefix, str(BIN / "tactilepipe"), "tool-train", "--scale", "smoke", "--override", json.dumps(override),
-           "--scene", "tool_normal", "--variant", "full", "--data-dir", f"{SMOKE}/tool_normal/data",
-           "--split", f"{SMOKE}/tool_normal/splits/trial.json", "--depth", "18", "--image-size", "16",
-           "--out-dir", str(out), "--quiet"]
+           "--scene", "tool_normal", "--run", "full", "--data-dir", f"{SMOKE}/tool_normal/data",
+           "--split", f"{SMOKE}/tool_normal/splits/trial.json", "--out-dir", str(out), "--quiet"]
     inherited = {k: v for k, v in ENV.items() if k not in EMULATED_VARIABLES}    # the caller's shell emulates nothing
     proc = subprocess.run(cmd, cwd=build, capture_output=True, text=True,
                           env={**inherited, "PYTHONPATH": str(build / "src"), **env})
@@ -128,9 +127,9 @@ def test_emulated_cpus_train_the_same_bytes_with_portable_kernels_only(smoke_bui
 def test_portable_kernels_refuse_more_than_one_thread(smoke_build: Path, tmp_path: Path):
     override = {"tool_train": {"kernels": "portable", "num_threads": 2}}
     proc = subprocess.run([str(BIN / "tactilepipe"), "tool-train", "--scale", "smoke", "--override",
-                           json.dumps(override), "--scene", "tool_normal", "--variant", "full",
+                           json.dumps(override), "--scene", "tool_normal", "--run", "full",
                            "--data-dir", f"{SMOKE}/tool_normal/data", "--split", f"{SMOKE}/tool_normal/splits/trial.json",
-                           "--depth", "18", "--image-size", "16", "--out-dir", str(tmp_path / "o"), "--quiet"],
+                           "--out-dir", str(tmp_path / "o"), "--quiet"],
                           cwd=smoke_build, capture_output=True, text=True,
                           env={**ENV, "PYTHONPATH": str(smoke_build / "src")})
     assert proc.returncode == 2

@@ -17,6 +17,7 @@ import yaml
 from tactilepipe.core.config import load_params
 from tactilepipe.tool.model.network import PAPER_WIDTH, build_model, count_parameters
 from tactilepipe.tool.report.portability import run_digests
+from tactilepipe.tool.runs import sweep_run_name, tool_runs
 
 from support.project import BIN, REPO, SMOKE, copy_project, results, run, snakemake
 
@@ -288,31 +289,72 @@ def test_each_scale_keeps_its_own_results_and_a_round_trip_reruns_nothing(smoke_
     assert run(["git", "status", "--porcelain"], wd).stdout == "?? results/smoke_b/\n"
 
 
-NEW_VARIANT = '''
-VARIANTS["no_ref_no_gam"] = Variant(((0, 1), (2, 3)), False, "rest_frame_rmse_linear", "no reference, no attention",
-                                    "#55A868", "current frames only and no GAM: both ablations at once")
-'''
+TOOL_SCENES = ("tool_normal", "tool_shear")
+UPSTREAM_OF_TRAINING = {"tool_simulate", "tool_ingest", "tool_clock_figure", "tool_dataset", "tool_split",
+                        "tool_data_report"}
 
 
-def test_a_new_model_variant_is_one_entry_in_variants_py(smoke_build: Path, tmp_path: Path):
-    """Registering a variant where the network defines it, with its baseline pairing, is all it takes:
-    the command line offers it, Snakemake plans and trains it on every repeat, the report scores it
-    against its like-for-like baseline, and dvc.yaml is still what its generator makes."""
+def _planned_jobs(proc) -> set[tuple[str, str]]:
+    """(rule, wildcards) of every job a dry run printed, `all` left out."""
+    text = proc.stdout + proc.stderr
+    jobs = re.findall(r"^(?:local)?rule (\w+):\n((?:    .*\n)*)", text, flags=re.M)
+    out = set()
+    for rule, body in jobs:
+        wildcards = re.search(r"^    wildcards: (.*)$", body, flags=re.M)
+        out.add((rule, wildcards.group(1) if wildcards else ""))
+    return out - {("all", "")}
+
+
+def _trainings(scenes, runs) -> set[tuple[str, str]]:
+    return {("tool_train", f"scene={s}, run={r}") for s in scenes for r in runs}
+
+
+def _with_variant_copy(params: Path, source: str, name: str) -> None:
+    """params.yaml with one more entry in tool_variants: a copy of ``source``'s under ``name``."""
+    text = params.read_text()
+    start = text.index(f"\n  {source}:\n") + 1
+    end = text.index("\ntool_train:", start)
+    entry = text[start:end].rstrip("\n").replace(f"  {source}:", f"  {name}:", 1)
+    params.unlink()                                      # a file of its own, not a link into the shared build
+    params.write_text(text[:end].rstrip("\n") + "\n" + entry + "\n" + text[end:])
+
+
+def test_a_new_model_variant_is_one_entry_in_params_yaml_and_trains_only_its_own_runs(smoke_build: Path,
+                                                                                       tmp_path: Path):
+    """A variant is data: one more entry in params.yaml plans its runs (every repeat, both tool
+    scenes) and the two model reports, nothing upstream and no other run; dvc.yaml is still what its
+    generator makes; trained, the report scores it against its like-for-like baseline."""
     wd = shutil.copytree(smoke_build, tmp_path / "wd", symlinks=True)
-    variants = wd / "src/tactilepipe/tool/model/variants.py"
-    variants.write_text(variants.read_text() + NEW_VARIANT)
-    assert "no_ref_no_gam" in run([str(BIN / "python"), "-m", "tactilepipe", "tool-train", "--help"], wd).stdout
-    plan = snakemake(wd, "-n", "--config", "scenes=[tool_normal]")
-    for run_name in ("no_ref_no_gam", "no_ref_no_gam_r1"):
-        assert f"{SMOKE}/tool_normal/models/{run_name}/eval.json" in plan.stdout, run_name
+    _with_variant_copy(wd / "params.yaml", "no_gam", "no_gam_copy")
+    planned = _planned_jobs(snakemake(wd, "-n", "--config", "scale=smoke"))
+    assert planned == _trainings(TOOL_SCENES, ["no_gam_copy", "no_gam_copy_r1"]) | \
+        {("tool_model_report", f"scene={s}") for s in TOOL_SCENES}, planned
     assert run([str(BIN / "python"), "workflow/scripts/dvc_yaml.py", "--check"], wd).returncode == 0
-    assert "src/tactilepipe/tool/model/variants.py" in yaml.safe_load((wd / "dvc.yaml").read_text())[
-        "stages"]["tool_models"]["deps"]                          # so `dvc repro` re-runs the models too
+    assert "tool_variants" in yaml.safe_load((wd / "dvc.yaml").read_text())["stages"]["tool_models"]["params"]
     before = run_digests(results(wd))
-    snakemake(wd, f"{SMOKE}/tool_normal/metrics.json", "--config", "scenes=[tool_normal]")
-    after = run_digests(results(wd))        # the others re-trained (their code changed) to the same bytes
-    assert {r: d for r, d in after.items() if "no_ref_no_gam" not in r} == before
+    snakemake(wd, f"{SMOKE}/tool_normal/metrics.json", "--config", "scale=smoke", "scenes=[tool_normal]")
+    after = run_digests(results(wd))
+    assert {r: d for r, d in after.items() if "no_gam_copy" not in r} == before          # none trained again
+    stamp = json.loads((results(wd) / "params/tool-train/no_gam_copy_r1.json").read_text())
+    assert stamp["values"]["run"]["variant"] == {"name": "no_gam_copy", "sensors": [[0, 2], [2, 4]], "gam": False}
     metrics = json.loads((results(wd) / "tool_normal/metrics.json").read_text())
-    new = metrics["no_ref_no_gam"]
-    assert new["like_for_like_baseline"] == "rest_frame_rmse_linear" and new["over_splits"]["mae"]["n"] == 2
-    assert "| no_ref_no_gam |" in (results(wd) / "tool_normal/tables/variants.md").read_text()
+    new = metrics["no_gam_copy"]
+    assert new["like_for_like_baseline"] == "tactile_rmse_linear" and new["over_splits"]["mae"]["n"] == 2
+    assert "| no_gam_copy |" in (results(wd) / "tool_normal/tables/variants.md").read_text()
+
+
+def test_a_training_key_re_runs_exactly_the_runs_that_read_it(smoke_build: Path, tmp_path: Path):
+    """Each training job has its own stamp: tool_train.image_size, which the sweep runs do not read,
+    plans every run but those; tool_train.lr plans every run. Neither plans anything upstream."""
+    wd = linked_copy(smoke_build, tmp_path / "wd")       # dry runs only
+    p = load_params(wd / "params.yaml", {"scale": "smoke"})
+    every = tool_runs(p["tool_train"], p["tool_split"]["repeats"], p["simulate_tool"]["tools_used"])
+    sweep = {sweep_run_name(s) for s in p["tool_train"]["sweep"]}
+    assert sweep and sweep < set(every)
+    reports = {("tool_model_report", f"scene={s}") for s in TOOL_SCENES}
+    sized = _planned_jobs(snakemake(wd, "-n", "--config", "scale=smoke", 'tool_train={"image_size": 12}'))
+    assert sized == _trainings(TOOL_SCENES, set(every) - sweep) | reports, sized
+    faster = _planned_jobs(snakemake(wd, "-n", "--config", "scale=smoke", 'tool_train={"lr": 0.001}'))
+    assert faster == _trainings(TOOL_SCENES, every) | reports, faster
+    assert not {rule for rule, _w in sized | faster} & UPSTREAM_OF_TRAINING
+    assert "Nothing to be done" in snakemake(wd, "-n", "--config", "scale=smoke").stdout   # the dry runs wrote no stamp

@@ -168,9 +168,9 @@ def test_the_command_line_refuses_a_nan_rate_and_a_billion_repeats_in_one_line(t
     start = text.index(old, text.index("\ntool_train:" if "lr" in old else "\ntool_split:"))
     params = tmp_path / "params.yaml"
     params.write_text(text[:start] + new + text[start + len(old):])
-    status = main(["tool-train", "--params", str(params), "--scene", "tool_normal", "--variant", "full",
+    status = main(["tool-train", "--params", str(params), "--scene", "tool_normal", "--run", "full",
                    "--data-dir", str(tmp_path / "data"), "--split", str(tmp_path / "s.json"),
-                   "--out-dir", str(tmp_path / "out"), "--depth", "18", "--image-size", "16"])
+                   "--out-dir", str(tmp_path / "out")])
     err = capsys.readouterr().err
     assert status == 2 and err.count("\n") == 1, err
     assert err.startswith("tactilepipe tool-train: error: ") and needle in err, err

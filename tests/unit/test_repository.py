@@ -48,7 +48,8 @@ def test_links_of_the_readme_and_docs_exist():
 def test_the_places_the_readme_promises_exist():
     src = REPO / "src" / "tactilepipe"
     assert "class ToolFrames" in (src / "tool" / "data" / "loader.py").read_text()
-    assert re.search(r"^VARIANTS\b", (src / "tool" / "model" / "variants.py").read_text(), re.M)
+    assert re.search(r"^def defined_variants\b", (src / "tool" / "model" / "variants.py").read_text(), re.M)
+    assert re.search(r"^tool_variants:", (REPO / "params.yaml").read_text(), re.M)
     figures = list((src / "tool" / "report").glob("figures_*.py"))
     assert figures and all("savefig" in f.read_text() or "save_figure" in f.read_text() for f in figures)
 

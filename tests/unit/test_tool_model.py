@@ -14,14 +14,16 @@ import pandas as pd
 import pytest
 import torch
 
+from tactilepipe.core.config import load_params
 from tactilepipe.core.errors import ArgumentError, ConfigError, TactilepipeError
 from tactilepipe.tool.data.loader import ToolFrames
 from tactilepipe.tool.model.network import (MIN_IMAGE_SIZE, PAPER_WIDTH, TrimmedConv2d, build_model,
                                             count_parameters)
 from tactilepipe.tool.model.train import scheduled_lr, train
-from tactilepipe.tool.model.variants import DEPTHS, VARIANTS
+from tactilepipe.tool.model.variants import DEPTHS, NAMED_ARCHITECTURES as VARIANTS
 from tactilepipe.tool.model.inference import latency_ms, load_model, predict
 
+from support.project import REPO
 from support.tool_data import S, TORCH_THREADS, make_dataset, make_split_dict, quick_cfg
 
 # Exact counts of this implementation (independent of the image size); the paper says "about 57 M"
@@ -437,7 +439,9 @@ def test_over_time_figure_shows_the_strongest_trial_of_each_tool(tmp_path):
         rows.append(pd.DataFrame({"tool": tool, "trial": trial, "t_s": t + 100, "true": true, "pred": true + 0.1}))
     pred = pd.concat(rows, ignore_index=True)
     assert strongest_trial_per_tool(pred) == ["k/a", "s/b"]
-    over_time({"full": pred, "single": pred}, "normal", tmp_path / "fig.png")
+    from tactilepipe.tool.model.variants import defined_variants
+    looks = defined_variants(load_params(REPO / "params.yaml")["tool_variants"])
+    over_time({"full": pred, "single": pred}, "normal", tmp_path / "fig.png", looks=looks)
     assert (tmp_path / "fig.png").stat().st_size > 10_000
 
 
@@ -479,8 +483,8 @@ def test_the_studys_orderings_are_judged_holds_reversed_or_undecided():
 
 
 def test_the_like_for_like_baselines_see_what_their_variant_sees():
-    from tactilepipe.tool.model.evaluate import (LIKE_FOR_LIKE, baselines, rest_frame_rmse_features,
-                                           tactile_rmse_features)
+    from tactilepipe.tool.model.evaluate import baselines, rest_frame_rmse_features, tactile_rmse_features
+    from tactilepipe.tool.model.variants import defined_variants
     rng = np.random.default_rng(0)
     references = rng.integers(0, 255, (4, 2, 3, 3)).astype(np.uint8)         # 4 trials, 2 fingers
     trial_index = np.repeat(np.arange(4), 5)
@@ -497,7 +501,7 @@ def test_the_like_for_like_baselines_see_what_their_variant_sees():
     rmse = tactile_rmse_features(frames, references, trial_index)
     pred = baselines(labels, rmse, rest, split)
     assert set(pred) == {"mean_predictor", "tactile_rmse_linear", "rest_frame_rmse_linear", "one_finger_rmse_linear"}
-    assert set(LIKE_FOR_LIKE.values()) <= set(pred)
+    assert {v.baseline for v in defined_variants(load_params(REPO / "params.yaml")["tool_variants"]).values()} <= set(pred)
     assert pred["mean_predictor"] == pytest.approx(np.full(10, labels[:10].mean()))
     # the one-finger baseline is a fit on the left finger only: the right finger's frames do not move it
     right_changed = rmse.copy()

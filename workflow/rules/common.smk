@@ -21,7 +21,6 @@ from tactilepipe.tool import runs as run_names
 from tactilepipe.tool.scenes import scene_label
 from tactilepipe.tool.data.splits import split_name
 from tactilepipe.tool.sim.background import background_path
-from tactilepipe.tool.model.variants import chosen_variants
 
 # `config` is params.yaml plus any --config overrides; validate and resolve the scale up front
 # so a wrong key or type stops the run before any job starts.
@@ -33,7 +32,6 @@ config.update(typed_like(config, _FILE_PARAMS))
 OVERRIDES = changed_leaves(config, _FILE_PARAMS)
 try:
     P = resolve(dict(config), "params.yaml (+ --config)", OVERRIDES)
-    chosen_variants(P["tool_train"]["variants"])
 except TactilepipeError as exc:
     raise WorkflowError(str(exc)) from None
 CLI = f"{shlex.quote(sys.executable)} -m tactilepipe"
@@ -90,14 +88,35 @@ def param_stamp(stage):
 def stamp_file(stage):
     """The stamp of ``stage`` as this run sees it (see param_stamp): the tracked file, written when
     its values changed, or in a dry run a scratch copy holding the new values."""
-    path = Path(SCALE_STAMPS if stage in SCALE_STAGES else PARAM_STAMPS) / f"{stage}.json"
     text = stamps.stamp_text(stage, codedeps.stage_param_keys(stage), codedeps.stage_graph_keys(stage), P)
+    return _current_stamp(Path(SCALE_STAMPS if stage in SCALE_STAGES else PARAM_STAMPS), f"{stage}.json", text)
+
+
+def run_stamp(wildcards):
+    """Input function: the stamp of a training job, results/<build>/params/tool-train/<run>.json."""
+    return run_stamp_file(wildcards.run)
+
+
+@cache
+def run_stamp_file(run):
+    """A training job's own stamp (pipeline/stamps.py run_stamp_text): the values of the tool-train
+    stage's declared keys and the run's definition (tool/runs.py run_definition), kept like a stage
+    stamp (see stamp_file). A key only some runs read, or a new variant, re-runs only those runs."""
+    text = stamps.run_stamp_text(run_names.run_definition(P, run), codedeps.stage_param_keys("tool-train"),
+                                 run_names.run_source_keys(P["tool_train"], run), P)
+    return _current_stamp(Path(PARAM_STAMPS), f"tool-train/{run}.json", text)
+
+
+def _current_stamp(folder, name, text):
+    """folder/name holding ``text``: left alone when it already does, else rewritten, or in a dry run
+    written to the scratch folder instead (its path returned)."""
+    path = folder / name
     old = path.read_text() if path.is_file() else None
     if old == text:
         return str(path)
     print(f"{path}: {stamps.stamp_change(old, text)}", file=sys.stderr, flush=True)
     if workflow.dryrun:
-        path = Path(_dry_run_scratch()) / "changed-params" / f"{stage}.json"
+        path = Path(_dry_run_scratch()) / "changed-params" / name
         path.parent.mkdir(parents=True, exist_ok=True)
     write_text(path, text)
     _tell_snakemake_it_exists(path)
@@ -285,7 +304,10 @@ def provenance_inputs(scene):
     inputs whether or not a session is simulated, so that the graph (and dvc.yaml) does not
     change with the kind of session named in params.yaml."""
     stages, _ = provenance_stages(scene, simulator="always")
-    return sorted({f for s in stages for f in stage_code(s)}) + [stamp_file(s) for s in stages]
+    # the training stage has a stamp per run (run_stamp_file), not one of its own
+    runs = tool_runs(scene) if "tool-train" in stages else []
+    return sorted({f for s in stages for f in stage_code(s)}) + [stamp_file(s) for s in stages if s != "tool-train"] + \
+        [run_stamp_file(r) for r in runs]
 
 
 @cache

@@ -151,11 +151,13 @@ def run_spec(run):
 
 
 rule tool_train:
+    # everything the job reads but its data and split is in its own stamp (run_stamp): the run's
+    # variant, split name, depth and size, and the training settings
     input:
         data=rules.tool_dataset.output,
         split=lambda w: f"{RESULTS}/{w.scene}/splits/{run_spec(w.run)[1]}.json",
         code=stage_code("tool-train"),
-        params=param_stamp("tool-train"),
+        params=run_stamp,
     output:
         evaluation=f"{RESULTS}/{{scene}}/models/{{run}}/eval.json",
         predictions=f"{RESULTS}/{{scene}}/models/{{run}}/predictions.parquet",
@@ -164,17 +166,14 @@ rule tool_train:
     wildcard_constraints:
         scene="tool_normal|tool_shear",
         run="[a-z_0-9]+",
-    params:
-        spec=lambda w: run_spec(w.run),
     threads: P["tool_train"]["num_threads"]
     resources:
         **rule_resources("tool_train"),
     log:
         f"{RESULTS}/logs/{{scene}}/train_{{run}}.log",
     shell:
-        "{CLI} tool-train --stamp {input.params:q} --scene {wildcards.scene} --variant {params.spec[0]} "
-        "--data-dir {RESULTS}/{wildcards.scene}/data --split {input.split} --depth {params.spec[2]} "
-        "--image-size {params.spec[3]} --out-dir {RESULTS}/{wildcards.scene}/models/{wildcards.run} --quiet 2> {log:q}"
+        "{CLI} tool-train --stamp {input.params:q} --scene {wildcards.scene} --data-dir {RESULTS}/{wildcards.scene}/data "
+        "--split {input.split} --out-dir {RESULTS}/{wildcards.scene}/models/{wildcards.run} --quiet 2> {log:q}"
 
 
 rule tool_model_report:

@@ -40,8 +40,9 @@ STAGES = [  # (name, Snakemake targets); "{scale}" is written as DVC's ${scale},
     ("tool_data", ["tool_data"]),
     ("tool_models", ["{results}/tool_normal/metrics.json", "{results}/tool_shear/metrics.json"]),
 ]
-# a parameter stamp (common.smk param_stamp), or a dry run's scratch copy of a changed one
-STAMP = re.compile(r"^(results/[^/]+/params|/.*/changed-params)/[^/]+\.json$")
+# a parameter stamp: a stage's (common.smk param_stamp) or a training run's (params/tool-train/<run>.json),
+# or a dry run's scratch copy of a changed one (changed-params/...)
+STAMP = re.compile(r"^(results/[^/]+/params|/.*/changed-params)/([^/]+/)?[^/]+\.json$")
 CONTENT_STAMPS = ".tactilepipe/content"     # the ingest rules' content stamps (common.smk content_stamp)
 COMMAND = "snakemake --cores 2 --workflow-profile workflow/profiles/default"
 METRICS = {"metrics.json", "provenance.json"}

@@ -166,6 +166,10 @@ def resolve(raw: dict, source: str = "params.yaml", overrides: dict | None = Non
     resolved["drift_session"] = resolved["drift_session"].replace("{scale}", scale)
     resolved["build"] = resolved["build"].replace("{scale}", scale)
     _check_consistency(resolved, source)
+    if resolved["tool_train"]["variants"] == "all":
+        # every defined variant in the file's order, spelled out: a stamp's values are written with
+        # sorted keys, and a stage reading "all" from one would see them alphabetically
+        resolved["tool_train"]["variants"] = list(resolved["tool_variants"])
     return resolved
 
 
@@ -192,6 +196,7 @@ def _check_consistency(p: dict, source: str) -> None:
         if size > stored:
             raise ConfigError(f"{source}: {where}={size} is larger than tool_ingest.stored_size={stored}: the model "
                               f"would train on upsampled frames (store them larger, or train smaller)")
+    _check_variants(p["tool_variants"], p["tool_train"]["variants"], source)
     if abs(sum(p["tool_split"]["fractions"]) - 1.0) > 1e-6:
         raise ConfigError(f"{source}: tool_split.fractions must sum to 1 (got {p['tool_split']['fractions']})")
     if p["simulate_volume"]["friction_kinetic"] > p["simulate_volume"]["friction_static"]:
@@ -201,6 +206,24 @@ def _check_consistency(p: dict, source: str) -> None:
     if pos["container_capped"] and pos["container_capacity_ml"] <= fullest:
         raise ConfigError(f"{source}: simulate_volume.position.container_capacity_ml={pos['container_capacity_ml']:g} "
                           f"leaves no headspace above the fullest volume ({fullest:g} ml)")
+
+
+def _check_variants(variants: dict, chosen, source: str) -> None:
+    if "full" not in variants:
+        raise ConfigError(f"{source}: tool_variants must define 'full', the published model (the leave-one-tool-out, "
+                          f"sweep and study-000 runs train it)")
+    for name, v in variants.items():
+        if name.startswith("full_") or re.search(r"_r[0-9]+$", name):
+            raise ConfigError(f"{source}: tool_variants.{name}: the name reads as another run (<variant>_r<k> is a "
+                              f"variant's repeat k, full_<...> one of the full model's other runs): choose another")
+        for a, b in v["sensors"]:
+            if a >= b:
+                raise ConfigError(f"{source}: tool_variants.{name}.sensors: [{a}, {b}] is no channel slice (start must "
+                                  f"be below stop, within the 4 input channels)")
+    unknown = [v for v in chosen if v not in variants] if chosen != "all" else []
+    if unknown:
+        raise ConfigError(f"{source}: tool_train.variants: unknown variant(s) {unknown} (tool_variants defines "
+                          f"{', '.join(variants)}; or 'all')")
 
 
 def load_params(path: str | Path = DEFAULT_PARAMS, overrides: dict | None = None) -> dict[str, Any]:

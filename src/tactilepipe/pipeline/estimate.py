@@ -25,6 +25,7 @@ from typing import Callable, Iterable
 
 from tactilepipe.pipeline import sourcecache
 from tactilepipe.pipeline.layout import results_root
+from tactilepipe.tool.model.variants import NAMED_ARCHITECTURES, Architecture
 
 # (rule, wildcards, resources, threads) of one job, as Snakemake's DAG has it
 Job = tuple[str, dict, dict, int]
@@ -32,25 +33,30 @@ FLOPS_CACHE = "forward-flops"
 
 
 @lru_cache(maxsize=None)
-def forward_flops(variant: str, depth: int, image_size: int, gam_channel_gate: str, width: int) -> float:
-    """FLOPs (multiply and add counted as two) of one frame pair through the model, inference mode.
-    Counting imports torch (about 6 s on 2 cores), so each count is kept for the exact source it
-    came from (sourcecache): a dry run that plans training does not pay it again."""
-    key = f"{variant} depth={depth} size={image_size} gate={gam_channel_gate} width={width}"
+def forward_flops(variant: str, depth: int, image_size: int, gam_channel_gate: str, width: int,
+                  architecture: Architecture | None = None) -> float:
+    """FLOPs (multiply and add counted as two) of one frame pair through the model, inference mode
+    (``architecture``: the variant's, as build_model takes it). Counting imports torch (about 6 s on
+    2 cores), so each count is kept for the exact source it came from (sourcecache): a dry run that
+    plans training does not pay it again."""
+    arch = architecture or NAMED_ARCHITECTURES.get(variant)
+    built = f"{arch.as_dict()}" if arch else variant
+    key = f"{built} depth={depth} size={image_size} gate={gam_channel_gate} width={width}"
     stored = sourcecache.read(FLOPS_CACHE)
     if key not in stored:
-        stored = {**stored, key: _count_forward_flops(variant, depth, image_size, gam_channel_gate, width)}
+        stored = {**stored, key: _count_forward_flops(variant, depth, image_size, gam_channel_gate, width, arch)}
         sourcecache.write(FLOPS_CACHE, stored)
     return float(stored[key])
 
 
-def _count_forward_flops(variant: str, depth: int, image_size: int, gam_channel_gate: str, width: int) -> float:
+def _count_forward_flops(variant: str, depth: int, image_size: int, gam_channel_gate: str, width: int,
+                         architecture: Architecture | None = None) -> float:
     import torch
     from torch.utils.flop_counter import FlopCounterMode
 
     from tactilepipe.tool.model.network import build_model
     with torch.device("meta"):
-        model = build_model(variant, depth, image_size, gam_channel_gate, width).eval()
+        model = build_model(variant, depth, image_size, gam_channel_gate, width, architecture).eval()
         x = torch.empty(1, 4, image_size, image_size)
         with FlopCounterMode(display=False) as counter:
             model(x)
@@ -83,7 +89,8 @@ def training_flops(p: dict, pairs: int, variant: str, depth: int, image_size: in
     n_train, n_val, n_test = pairs * f_train, pairs * f_val, pairs * f_test
     if tt["max_train_batches_per_epoch"]:
         n_train = min(n_train, tt["max_train_batches_per_epoch"] * tt["batch_size"])
-    fwd = forward_flops(variant, depth, image_size, tt["gam_channel_gate"], tt["width"])
+    fwd = forward_flops(variant, depth, image_size, tt["gam_channel_gate"], tt["width"],
+                        Architecture.from_dict(p["tool_variants"][variant]))
     epochs = tt["max_epochs"]
     total = epochs * (3 * fwd * n_train + fwd * n_val) + fwd * n_test
     return {"forward_gflop": fwd / 1e9, "epochs": epochs, "train_pairs": int(n_train), "flop": total}

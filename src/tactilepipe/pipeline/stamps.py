@@ -4,6 +4,12 @@ The workflow writes a stage's stamp (its declared keys and the keys the rules re
 jobs, with their values) and rewrites it only when the values change; the stage, run by a rule
 with ``--stamp``, reads its values back from it; the dvc.yaml generator reads the keys. The
 format is written and read here only.
+
+A training job has a stamp of its own, results/<build>/params/tool-train/<run>.json: the values
+of the stage's declared keys, and under ``run`` the run's definition (tool/runs.py
+``run_definition``: its variant's name and architecture, split, depth, input size). Its ``graph``
+names the params.yaml keys that definition comes from. So a key only some runs read re-runs only
+those, and a new variant trains only its own runs.
 """
 
 from __future__ import annotations
@@ -12,7 +18,7 @@ import json
 from pathlib import Path
 
 from tactilepipe.core.config import declared, deep_merge
-from tactilepipe.core.errors import InputError
+from tactilepipe.core.errors import InputError, TactilepipeError
 
 
 def stamp_text(stage: str, keys: tuple[str, ...], graph_keys: tuple[str, ...], resolved: dict) -> str:
@@ -21,6 +27,34 @@ def stamp_text(stage: str, keys: tuple[str, ...], graph_keys: tuple[str, ...], r
     values = deep_merge(plain(declared(resolved, keys, stage)), plain(declared(resolved, graph_keys, "workflow")))
     stamp = {"stage": stage, "declared": list(keys), "graph": list(graph_keys), "values": values}
     return json.dumps(stamp, indent=1, sort_keys=True) + "\n"
+
+
+TRAIN_STAGE = "tool-train"
+# what a run's stamp holds under "run" (tool/runs.py run_definition makes it; imported from there by no
+# stage: every stage reads its stamp through this module, and would then count that code as its own)
+RUN_FIELDS = ("name", "variant", "split", "depth", "image_size")
+
+
+def run_stamp_text(run: dict, keys: tuple[str, ...], source_keys: tuple[str, ...], resolved: dict) -> str:
+    """The stamp of the training job of ``run`` (its definition, tool/runs.py ``run_definition``):
+    the values of the stage's declared ``keys`` and the run; ``source_keys`` are where the run's
+    values come from in params.yaml (listed for DVC, as a stage stamp's graph keys)."""
+    values = json.loads(json.dumps(declared(resolved, keys, TRAIN_STAGE)))
+    if "run" in values:
+        raise TactilepipeError(f"the {TRAIN_STAGE} stage declares a parameter group named 'run', the name its "
+                               f"stamps hold the run's definition under")
+    stamp = {"stage": TRAIN_STAGE, "run": run["name"], "declared": list(keys), "graph": list(source_keys),
+             "values": {**values, "run": run}}
+    return json.dumps(stamp, indent=1, sort_keys=True) + "\n"
+
+
+def run_of_stamp(path: str | Path) -> dict:
+    """The run definition a training job's stamp at ``path`` holds."""
+    run = stamp_values(path, TRAIN_STAGE).get("run")
+    if not isinstance(run, dict) or sorted(run) != sorted(RUN_FIELDS) or not isinstance(run["variant"], dict):
+        raise InputError(path, f"not a training run's stamp (its values hold no 'run' with {', '.join(RUN_FIELDS)}: "
+                               f"the workflow writes one per run, results/<build>/params/{TRAIN_STAGE}/<run>.json)")
+    return run
 
 
 def stamp_values(path: str | Path, stage: str) -> dict:

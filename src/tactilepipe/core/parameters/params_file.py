@@ -6,7 +6,8 @@ from pydantic import Field
 
 from tactilepipe.core.parameters.base import BuildName, Group, RequiredKeys, SessionName, UniqueList, overlay_of
 from tactilepipe.core.parameters.resources import Resources
-from tactilepipe.core.parameters.tool import Predict, PublicData, ToolIngest, ToolSplit, ToolSync, ToolTrain
+from tactilepipe.core.parameters.tool import (Predict, PublicData, ToolIngest, ToolSplit, ToolSync, ToolTrain, ToolVariant,
+                                              VariantName)
 from tactilepipe.core.parameters.tool_sim import SimulateTool
 from tactilepipe.core.parameters.volume import (Baseline, Drift, Folds, Mlp, PapillarrayAxes, PapillarrayIngest,
                                                 Segment, SimulateDrift, SimulateVolume, VolumeChecks, VolumeRegimes)
@@ -53,4 +54,8 @@ class Params(ParameterGroups):
     volume_sensor: Literal[0, 1]
     drift_session: SessionName
     tool_sessions: UniqueList[SessionName] = Field(min_length=1)
+    # the same at every scale (a scale chooses among them with tool_train.variants)
+    tool_variants: dict[VariantName, ToolVariant] = Field(
+        min_length=1, description="the model variants, by name, in the order figures and tables list them; full is the "
+                                  "published model (the leave-one-tool-out, sweep and study-000 runs train it)")
     scales: Annotated[dict[str, ScaleOverlay], RequiredKeys("smoke", "default", "paper")]

@@ -5,9 +5,14 @@ from typing import Annotated, Literal
 
 from pydantic import Field, NonNegativeFloat, PositiveFloat
 
-from tactilepipe.core.parameters.base import Group, RequiredKeys, Triple, UniqueList
+from tactilepipe.core.parameters.base import Group, Pair, RequiredKeys, Triple, UniqueList
 
 Depth = Literal[18, 34, 50, 101]          # ResNet depths: tool/model/variants.py DEPTHS (a test keeps them equal)
+# the baselines the model report fits (tool/model/variants.py BASELINES; a test keeps them equal)
+Baseline = Literal["mean_predictor", "tactile_rmse_linear", "rest_frame_rmse_linear", "one_finger_rmse_linear"]
+# A variant's name is the first part of its run names (tool/runs.py), which are [a-z_0-9]+; that no
+# name reads as another run ("<name>_r<k>", "full_<...>") is checked with the other groups (config.py).
+VariantName = Annotated[str, Field(pattern=r"^[a-z][a-z0-9]*(_[a-z0-9]+)*$")]
 Kernels = Literal["portable", "native"]
 
 
@@ -98,12 +103,27 @@ class SweepRun(Group):
     image_size: int = Field(ge=8, le=1024, description="at most 1024, the largest tool_ingest.stored_size")
 
 
+class ToolVariant(Group):
+    """A model variant of study 000's ablation: what the network builds (sensors, gam) and how the
+    model report compares and draws it (baseline, label, colour)."""
+
+    sensors: list[Pair[Annotated[int, Field(ge=0, le=4)]]] = Field(
+        min_length=1, max_length=4, description="per encoder, the [start, stop) slice of the loader's four input "
+                                                "channels [left, left_ref, right, right_ref] it reads")
+    gam: bool = Field(description="GAM blocks present (false: each is the identity)")
+    baseline: Baseline = Field(description="the baseline with the same information (the like-for-like "
+                                           "comparison of the model report)")
+    label: str = Field(min_length=1, max_length=60, description="its name in figures and tables")
+    colour: str = Field(pattern=r"^#[0-9A-Fa-f]{6}$", description="its colour in figures (#RRGGBB)")
+    doc: str = Field(description="what it is, in a sentence")
+
+
 class ToolTrain(Group):
     """The CNN + GAM + ResNet model of study 000 and its ablations."""
 
     variants: Literal["all"] | UniqueList[str] = Field(
-        min_length=1, description="the model variants to train: all (every one tool/model/variants.py defines) or "
-                                  "a list of their names")
+        min_length=1, description="the model variants to train: all (every one tool_variants defines, in its "
+                                  "order) or a list of their names")
     split: Literal["frame", "trial", "lopo"]
     loto: bool
     depth: Depth

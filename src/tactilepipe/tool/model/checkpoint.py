@@ -16,6 +16,7 @@ from tactilepipe.core.atomic import atomic_path
 from tactilepipe.core.errors import InputError, TactilepipeError
 from tactilepipe.tool.model.network import PAPER_WIDTH
 from tactilepipe.tool.model.train_config import TrainConfig
+from tactilepipe.tool.model.variants import NAMED_ARCHITECTURES
 
 CHECKPOINT_FORMAT = "tactilepipe.tool.train/1"   # a file format tag, not a module path: kept so older checkpoints load
 HISTORY_COLUMNS = ["epoch", "train_loss", "val_loss", "val_mae_n", "lr", "epoch_s", "wall_s"]
@@ -103,6 +104,9 @@ UNRECORDED = {"gam_channel_gate": "sigmoid", "width": PAPER_WIDTH, "kernels": "n
 def settings_diff(ckpt: dict, cfg: TrainConfig, split: dict, data) -> dict:
     """Settings of ``cfg``/``split``/``data`` that differ from the checkpoint's (empty: it may resume)."""
     old = {"lr_schedule": "constant", **UNRECORDED, **ckpt["config"]}     # before the schedule: constant
+    if old.get("architecture") is None:           # recorded by name only: the name's first definition
+        named = NAMED_ARCHITECTURES.get(old.get("variant"))
+        old["architecture"] = named.as_dict() if named else None
     resumable = RESUMABLE_CHANGES - ({"max_epochs"} if cfg.lr_schedule == "cosine" else set())   # it sets the decay
     diff = {k: (old.get(k), v) for k, v in asdict(cfg).items() if k not in resumable and old.get(k) != v}
     if ckpt["meta"].get("split_fingerprint") != split_fingerprint(split):

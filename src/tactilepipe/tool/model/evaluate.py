@@ -2,8 +2,8 @@
 
 Overall MAE, RMSE, R², regression slope/intercept; |error| per tool (mean ± std, n) and per
 force window (0–3, 3–6, …, >21 N, with counts); and baselines on the same split, each with the
-information of the variant it is compared with (``LIKE_FOR_LIKE``, from each variant's entry in
-``tool/model/variants.py``):
+information of the variant it is compared with (each variant's ``baseline`` in params.yaml
+``tool_variants``):
 - ``mean_predictor``: the training mean (everyone's baseline);
 - ``tactile_rmse_linear``: least squares on each finger's RMSE against its trial's reference frame
   (``full``, ``no_gam``: both fingers and their references);
@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from tactilepipe.core.metrics import mae, r2_score, rmse
-from tactilepipe.tool.model.variants import BASELINES, VARIANTS
+from tactilepipe.tool.model.variants import BASELINES
 
 WINDOW_EDGES = [0, 3, 6, 9, 12, 15, 18, 21]
 
@@ -63,10 +63,6 @@ def tactile_rmse_features(frames: np.ndarray, references: np.ndarray, trial_inde
         ref = references[trial_index[start:start + chunk]].astype(np.float32)
         out[start:start + chunk] = np.sqrt(((cur - ref) ** 2).mean(axis=(2, 3)))
     return out
-
-
-# the baseline each variant is compared with like for like (its entry in VARIANTS)
-LIKE_FOR_LIKE = {name: v.baseline for name, v in VARIANTS.items()}
 
 
 def rest_frame_rmse_features(frames: np.ndarray, references: np.ndarray, trial_index: np.ndarray,

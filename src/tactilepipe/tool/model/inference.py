@@ -14,6 +14,7 @@ from tactilepipe.core.errors import ArgumentError, InputError
 from tactilepipe.tool.model.checkpoint import UNRECORDED, check_finite_weights, load_checkpoint
 from tactilepipe.tool.model.network import build_model
 from tactilepipe.tool.model.train import denormalise, resolve_device, to_input, uses_channels_last
+from tactilepipe.tool.model.variants import Architecture
 
 
 def load_model(checkpoint_path: str | Path, device: str = "cpu", channels_last: bool = True,
@@ -45,9 +46,17 @@ def _own_model(checkpoint_path: Path, raw) -> tuple[nn.Module, dict]:
     ckpt = load_checkpoint(checkpoint_path, raw)
     meta = {**UNRECORDED, **ckpt["meta"], "config": ckpt["config"], "source": "tactilepipe"}
     try:
-        model = build_model(meta["variant"], meta["depth"], meta["image_size"], meta["gam_channel_gate"], meta["width"])
+        # a checkpoint records its variant's architecture; one written before variants were
+        # parameters records only the name, which build_model resolves (variants.NAMED_ARCHITECTURES)
+        recorded = meta.get("architecture")
+        arch = Architecture.from_dict(recorded) if recorded is not None else None
+        model = build_model(meta["variant"], meta["depth"], meta["image_size"], meta["gam_channel_gate"], meta["width"],
+                            arch)
     except ArgumentError as exc:                  # the file's metadata, not the caller's argument
         raise InputError(checkpoint_path, f"metadata: {exc}") from None
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(checkpoint_path, f"metadata: architecture {meta.get('architecture')!r} is not "
+                                          f"{{'sensors': [[start, stop], ...], 'gam': bool}} ({exc!r})") from None
     try:
         model.load_state_dict(ckpt["model"])
     except RuntimeError as exc:                   # torch lists every mismatched key: the first says enough

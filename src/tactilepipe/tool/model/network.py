@@ -48,7 +48,7 @@ from torch import nn
 
 from tactilepipe.core.errors import ArgumentError
 from tactilepipe.tool.model import fixed_order
-from tactilepipe.tool.model.variants import DEPTHS, VARIANTS
+from tactilepipe.tool.model.variants import DEPTHS, NAMED_ARCHITECTURES, Architecture
 
 MIN_IMAGE_SIZE = 8
 GAM_CHANNEL_GATES = ("sigmoid", "none")
@@ -218,11 +218,11 @@ class ResNetRegressor(nn.Module):
 
 
 class ToolForceNet(nn.Module):
-    def __init__(self, variant: str, depth: int, image_size: int, gam_channel_gate: str, width: int):
+    def __init__(self, variant: str, depth: int, image_size: int, gam_channel_gate: str, width: int,
+                 spec: Architecture):
         super().__init__()
         self.variant, self.depth, self.image_size, self.width = variant, depth, image_size, width
-        self.gam_channel_gate = gam_channel_gate
-        spec = VARIANTS[variant]
+        self.gam_channel_gate, self.architecture = gam_channel_gate, spec
         self.slices = spec.sensors
         self.encoders = nn.ModuleList(Encoder(b - a, width) for a, b in spec.sensors)
         self.sensor_gams = nn.ModuleList(GAM(e.out_channels, channel_gate=gam_channel_gate) if spec.gam
@@ -279,21 +279,29 @@ def check_image_size(image_size: int) -> None:
                             f"(the encoder divides by 8)")
 
 
-def build_model(variant: str, depth: int, image_size: int, gam_channel_gate: str, width: int) -> ToolForceNet:
-    """A freshly initialised model (no pretrained weights). ``variant`` is a key of VARIANTS,
-    ``depth`` one of 18, 34, 50, 101, ``image_size`` the side S of the square inputs,
-    ``gam_channel_gate`` one of GAM_CHANNEL_GATES, ``width`` the channels of the first encoder
-    stage (PAPER_WIDTH: the paper's model)."""
+def build_model(variant: str, depth: int, image_size: int, gam_channel_gate: str, width: int,
+                architecture: Architecture | None = None) -> ToolForceNet:
+    """A freshly initialised model (no pretrained weights). ``variant`` is the variant's name and
+    ``architecture`` what it builds (its params.yaml ``tool_variants`` entry, or a checkpoint's
+    record of it; None: the name's entry of variants.NAMED_ARCHITECTURES), ``depth`` one of 18,
+    34, 50, 101, ``image_size`` the side S of the square inputs, ``gam_channel_gate`` one of
+    GAM_CHANNEL_GATES, ``width`` the channels of the first encoder stage (PAPER_WIDTH: the paper's)."""
     if gam_channel_gate not in GAM_CHANNEL_GATES:
         raise ArgumentError(f"unknown gam_channel_gate '{gam_channel_gate}' (one of {', '.join(GAM_CHANNEL_GATES)})")
-    if variant not in VARIANTS:
-        raise ArgumentError(f"unknown model variant '{variant}' (one of {', '.join(VARIANTS)})")
+    if architecture is None:
+        if variant not in NAMED_ARCHITECTURES:
+            raise ArgumentError(f"unknown model variant '{variant}' without its definition (sensors, gam): the "
+                                f"names known without one are {', '.join(NAMED_ARCHITECTURES)}")
+        architecture = NAMED_ARCHITECTURES[variant]
+    if not architecture.sensors or any(not 0 <= a < b <= 4 for a, b in architecture.sensors):
+        raise ArgumentError(f"model variant '{variant}': sensors {[list(s) for s in architecture.sensors]} must be "
+                            f"[start, stop) slices of the 4 input channels")
     if depth not in DEPTHS:
         raise ArgumentError(f"unsupported ResNet depth {depth} (one of {', '.join(map(str, DEPTHS))})")
     check_image_size(image_size)
     if isinstance(width, bool) or not isinstance(width, numbers.Integral) or width < 1:
         raise ArgumentError(f"model width {width!r} must be a whole number of channels, at least 1")
-    return ToolForceNet(variant, depth, int(image_size), gam_channel_gate, int(width))
+    return ToolForceNet(variant, depth, int(image_size), gam_channel_gate, int(width), architecture)
 
 
 def count_parameters(model: nn.Module, trainable_only: bool = False) -> int:

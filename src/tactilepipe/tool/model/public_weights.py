@@ -28,7 +28,7 @@ from torch import nn
 
 from tactilepipe.core.errors import ArgumentError, InputError
 from tactilepipe.tool.model.network import PAPER_WIDTH, build_model
-from tactilepipe.tool.model.variants import DEPTHS
+from tactilepipe.tool.model.variants import DEPTHS, NAMED_ARCHITECTURES
 
 PUBLIC_MARKER = "initial_cnn1.conv1.weight"
 HEADS = {"normal": (0, 2, 4), "shear": (0, 3, 5)}      # public fc indices of our head.0, head.2, head.4
@@ -163,7 +163,7 @@ def public_model(state, image_size: int, source: str | Path = "checkpoint") -> t
     ours, depth, head = from_public(state, source)
     net = build_model("full", depth, image_size, gam_channel_gate="none", width=PAPER_WIDTH)
     net.load_state_dict(ours)
-    meta = {"variant": "full", "depth": depth, "image_size": int(image_size), "gam_channel_gate": "none",
+    meta = {"variant": "full", "architecture": NAMED_ARCHITECTURES["full"].as_dict(), "depth": depth, "image_size": int(image_size), "gam_channel_gate": "none",
             "width": PAPER_WIDTH, "label": head, "normalise": "minmax", "label_stats": None, "source": "public", "head": head,
             "input_range": [-1.0, 1.0]}
     return PublicInput(net), meta

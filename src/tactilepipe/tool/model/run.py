@@ -11,25 +11,32 @@ import numpy as np
 import pandas as pd
 
 from tactilepipe.core.atomic import write_json, write_parquet
+from tactilepipe.core.errors import InputError
 from tactilepipe.tool.scenes import LABEL_NORMALISATION, scene_label
 from tactilepipe.tool.model.evaluate import evaluate
 from tactilepipe.tool.data.loader import ToolFrames
 
 
 
-def train_and_predict(scene: str, data_dir: Path, split_path: Path, out_dir: Path, variant: str, depth: int,
-                      image_size: int, tp: dict, seed: int, progress: bool = True) -> dict:
+def train_and_predict(scene: str, data_dir: Path, split_path: Path, out_dir: Path, run: dict, tp: dict, seed: int,
+                      progress: bool = True) -> dict:
+    """Train ``run`` (tool/runs.py run_definition: its variant's name and architecture, split name,
+    depth, input size) with the ``tool_train`` settings ``tp`` on the split file ``split_path``."""
     from tactilepipe.tool.model.checkpoint import stale_checkpoint_reason
     from tactilepipe.tool.model.train import train
     from tactilepipe.tool.model.train_config import TrainConfig
     from tactilepipe.tool.model.inference import latency_ms, load_model, predict
+    variant, depth, image_size = run["variant"]["name"], run["depth"], run["image_size"]
+    architecture = {k: v for k, v in run["variant"].items() if k != "name"}
     label = scene_label(scene)
     normalise = LABEL_NORMALISATION[label]
     data = ToolFrames(data_dir, label).resized(image_size)
     split = json.loads(Path(split_path).read_text())
+    if split.get("name") != run["split"]:
+        raise InputError(split_path, f"split {split.get('name')!r}, but run {run['name']} trains on split {run['split']!r}")
     seed += split["repeat"]          # each repeat of a split draws its own model seed too
-    cfg = TrainConfig.from_params(tp, variant=variant, depth=depth, image_size=image_size, normalise=normalise,
-                                  seed=seed)
+    cfg = TrainConfig.from_params(tp, variant=variant, architecture=architecture, depth=depth, image_size=image_size,
+                                  normalise=normalise, seed=seed)
     # last.pt of an interrupted run resumes it; one made with other settings (the workflow re-runs
     # this job after a parameter change) or unreadable is set aside, and the run starts again
     stale = stale_checkpoint_reason(out_dir / "last.pt", cfg, split, data)

@@ -36,6 +36,7 @@ from tactilepipe.tool.model.checkpoint import (CHECKPOINT_FORMAT, data_fingerpri
 from tactilepipe.tool.model.kernels import check_mode, require_active
 from tactilepipe.tool.model.network import build_model, count_parameters
 from tactilepipe.tool.model.train_config import TrainConfig
+from tactilepipe.tool.model.variants import Architecture
 
 LR_SCHEDULES = ("constant", "cosine")
 
@@ -191,7 +192,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
                           f"set kernels: native for a GPU run")
     use_amp = bool(cfg.amp) and device.type == "cuda"
     stats = split["label_stats"]
-    meta = {"variant": cfg.variant, "depth": cfg.depth, "image_size": cfg.image_size,
+    meta = {"variant": cfg.variant, "architecture": cfg.architecture, "depth": cfg.depth, "image_size": cfg.image_size,
             "gam_channel_gate": cfg.gam_channel_gate, "width": cfg.width, "normalise": cfg.normalise, "label_stats": dict(stats), "label": split.get("label"),
             "split": split.get("name"), "split_fingerprint": split_fingerprint(split),
             "data_fingerprint": data_fingerprint(data), "frame_orientation": getattr(data, "orientation", None)}
@@ -204,7 +205,8 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
         kernels = require_active(cfg.kernels) if device.type == "cpu" else {"mode": cfg.kernels}
         _use_deterministic_algorithms(True, warn_only=device.type != "cpu")
         torch.manual_seed(cfg.seed)
-        model = build_model(cfg.variant, cfg.depth, cfg.image_size, cfg.gam_channel_gate, cfg.width).to(device)
+        model = build_model(cfg.variant, cfg.depth, cfg.image_size, cfg.gam_channel_gate, cfg.width,
+                            Architecture.from_dict(cfg.architecture)).to(device)
         if cfg.channels_last:
             model = model.to(memory_format=torch.channels_last)
         meta["parameters"] = count_parameters(model)

@@ -5,12 +5,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from tactilepipe.core.errors import ArgumentError
+from tactilepipe.tool.model.variants import NAMED_ARCHITECTURES
+
 
 @dataclass
 class TrainConfig:
     """One run's training settings. Every value comes from params.yaml ``tool_train`` (``from_params``)
-    or from the run itself (variant, size, label scaling, seed): none has a default here."""
-    variant: str                        # key of variants.VARIANTS
+    or from the run itself (variant, size, label scaling, seed): none has a default here but the
+    variant's architecture, which a name of variants.NAMED_ARCHITECTURES implies."""
+    variant: str                        # the variant's name (params.yaml tool_variants)
     depth: int                          # ResNet depth: 18, 34, 50, 101
     image_size: int                     # S of the (b, 4, S, S) inputs (must match the dataset)
     lr: float                           # Adam
@@ -30,13 +34,21 @@ class TrainConfig:
     width: int                          # channels of the first encoder stage (the paper: 64); all scale with it
     kernels: str                        # portable | native: numerical kernels (tool/model/kernels.py)
     channels_last: bool = True          # NHWC memory format (faster on CPU); not a parameter
+    architecture: dict | None = None    # the variant's {"sensors": [[start, stop], ...], "gam": bool}
+                                        # (variants.Architecture.as_dict); None: its name's, as first defined
+
+    def __post_init__(self):
+        if self.architecture is None:
+            if self.variant not in NAMED_ARCHITECTURES:
+                raise ArgumentError(f"model variant '{self.variant}': no architecture given (its sensors and gam)")
+            self.architecture = NAMED_ARCHITECTURES[self.variant].as_dict()
 
     @classmethod
     def from_params(cls, tool_train: dict, *, variant: str, depth: int, image_size: int, normalise: str,
-                    seed: int) -> "TrainConfig":
+                    seed: int, architecture: dict | None = None) -> "TrainConfig":
         """The settings of one run from the ``tool_train`` parameter group and the run's own values."""
         t = tool_train
-        return cls(variant=variant, depth=depth, image_size=image_size, normalise=normalise, seed=seed,
+        return cls(variant=variant, architecture=architecture, depth=depth, image_size=image_size, normalise=normalise, seed=seed,
                    lr=t["lr"], lr_schedule=t["lr_schedule"], batch_size=t["batch_size"], max_epochs=t["max_epochs"],
                    patience=t["patience"], device=t["device"], amp=t["amp"], num_threads=t["num_threads"],
                    max_train_batches_per_epoch=t["max_train_batches_per_epoch"] or None,

@@ -1,43 +1,63 @@
-"""The model variants of study 000's ablation (the one place a variant is defined), and the depths
-of its ResNet regressor.
+"""The model variants of study 000's ablation, as the code reads them, and the depths of its ResNet
+regressor.
 
-Each entry says which input channels each encoder reads (slices of the loader's four channels
-[left, left_ref, right, right_ref]), whether the GAM blocks exist, the baseline that has the same
-information (the like-for-like comparison of the model report), and how figures name and colour
-it. The network builds a variant from this entry; the command line offers these names; the
-workflow trains every variant when ``tool_train.variants`` is ``all``. Adding an entry here is all
-a new variant needs. Kept free of torch, so the report and the command line read it cheaply.
+A variant is data: an entry of params.yaml ``tool_variants`` (validated by
+core/parameters/tool.py ``ToolVariant``). Each says which input channels each encoder reads
+(slices of the loader's four channels [left, left_ref, right, right_ref]), whether the GAM blocks
+exist, the baseline that has the same information (the like-for-like comparison of the model
+report), and how figures name and colour it. The network is built from its ``Architecture``
+(sensors, gam), which a training run receives in its stamp and writes into its checkpoints, so a
+checkpoint loads on its own. Kept free of torch, so the report and the workflow read it cheaply.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from tactilepipe.core.errors import ConfigError
-
 BASELINES = ("mean_predictor", "tactile_rmse_linear", "rest_frame_rmse_linear", "one_finger_rmse_linear")
 
 
 @dataclass(frozen=True)
-class Variant:
+class Architecture:
+    """What the network builds a variant from."""
     sensors: tuple[tuple[int, int], ...]   # per encoder: [start, stop) slice of the 4 input channels
     gam: bool                              # GAM blocks present (else identity)
+
+    def as_dict(self) -> dict:
+        return {"sensors": [list(s) for s in self.sensors], "gam": self.gam}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Architecture":
+        return cls(tuple((int(a), int(b)) for a, b in d["sensors"]), bool(d["gam"]))
+
+
+@dataclass(frozen=True)
+class Variant:
+    architecture: Architecture
     baseline: str                          # the baseline with the same information (one of BASELINES)
     label: str                             # its name in figures and tables
     colour: str                            # its colour in figures
     doc: str
 
 
-VARIANTS: dict[str, Variant] = {
-    "full": Variant(((0, 2), (2, 4)), True, "tactile_rmse_linear", "full model", "#C44E52",
-                    "the published model: both fingers, each with its zero-force reference, GAMs on"),
-    "no_ref": Variant(((0, 1), (2, 3)), True, "rest_frame_rmse_linear", "no reference frame", "#64B5CD",
-                      "reference frames removed: each finger's encoder reads only its current frame (1 ch)"),
-    "single": Variant(((0, 2),), True, "one_finger_rmse_linear", "single sensor", "#1f3d7a",
-                      "left finger only (current + reference): one encoder + GAM(256), no fusion GAM; "
-                      "the ResNet's first conv takes 256 channels"),
-    "no_gam": Variant(((0, 2), (2, 4)), False, "tactile_rmse_linear", "no attention (GAM)", "#8172B2",
-                      "both fingers with references, every GAM replaced by identity"),
+def variant_of(entry: dict) -> Variant:
+    """A ``tool_variants`` entry of the parameters as a Variant."""
+    return Variant(Architecture.from_dict(entry), entry["baseline"], entry["label"], entry["colour"], entry["doc"])
+
+
+def defined_variants(tool_variants: dict) -> dict[str, Variant]:
+    """Every variant params.yaml ``tool_variants`` defines, in its order."""
+    return {name: variant_of(entry) for name, entry in tool_variants.items()}
+
+
+# What the four first variants were when a checkpoint recorded only a variant's name (before variants
+# were parameters): such a checkpoint is built from its name's entry here. Also the architecture a
+# name gives where no parameters are at hand (the public code's weights are the "full" model).
+NAMED_ARCHITECTURES: dict[str, Architecture] = {
+    "full": Architecture(((0, 2), (2, 4)), True),
+    "no_ref": Architecture(((0, 1), (2, 3)), True),
+    "single": Architecture(((0, 2),), True),
+    "no_gam": Architecture(((0, 2), (2, 4)), False),
 }
 
 # the ResNet regressor's depths: block kind and blocks per stage
@@ -47,26 +67,3 @@ DEPTHS: dict[int, tuple[str, list[int]]] = {
     50: ("bottleneck", [3, 4, 6, 3]),
     101: ("bottleneck", [3, 4, 23, 3]),
 }
-
-ALL = "all"
-
-
-def chosen_variants(setting: str | list[str]) -> list[str]:
-    """The variants ``tool_train.variants`` asks for: every variant (``all``, in VARIANTS order) or
-    the ones listed, each of which must be defined."""
-    if setting == ALL:
-        return list(VARIANTS)
-    unknown = [v for v in setting if v not in VARIANTS]
-    if unknown:
-        raise ConfigError(f"tool_train.variants: unknown variant(s) {unknown} (defined: {', '.join(VARIANTS)}; "
-                          f"or '{ALL}')")
-    return list(setting)
-
-
-def _check() -> None:
-    for name, v in VARIANTS.items():
-        if v.baseline not in BASELINES:
-            raise ConfigError(f"variant '{name}': baseline '{v.baseline}' is not one of {BASELINES}")
-
-
-_check()

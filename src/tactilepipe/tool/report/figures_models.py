@@ -13,10 +13,18 @@ import pandas as pd
 
 from tactilepipe.core.atomic import save_figure
 from tactilepipe.core.plotting import close, figure
-from tactilepipe.tool.model.variants import VARIANTS
+from tactilepipe.tool.model.variants import Variant
 
-VARIANT_COLORS = {name: v.colour for name, v in VARIANTS.items()}
-VARIANT_LABELS = {name: v.label for name, v in VARIANTS.items()}
+# ``looks``: the variants as params.yaml tool_variants defines them ({name: Variant}), whose label and
+# colour the figures draw; a name it does not hold (a baseline) keeps its own name and a neutral colour.
+
+
+def _colour(looks: dict[str, Variant], name: str, default: str | None = None) -> str | None:
+    return looks[name].colour if name in looks else default
+
+
+def _label(looks: dict[str, Variant], name: str, default: str | None = None) -> str:
+    return looks[name].label if name in looks else (default or name)
 
 
 def sorted_predictions(pred: pd.DataFrame, label: str, out: Path) -> None:
@@ -39,7 +47,7 @@ def strongest_trial_per_tool(pred: pd.DataFrame) -> list[str]:
     return peaks.sort_values(["tool", "true"], ascending=[True, False]).groupby("tool").head(1)["trial"].tolist()
 
 
-def over_time(preds: dict[str, pd.DataFrame], label: str, out: Path, gap_s: float = 0.5) -> None:
+def over_time(preds: dict[str, pd.DataFrame], label: str, out: Path, gap_s: float = 0.5, *, looks: dict[str, Variant]) -> None:
     """Fig. 6: predictions over time, per variant, for several presses: the test trial with the
     highest peak of each tool, laid end to end (trials are a few seconds, one or two presses each)."""
     first = next(iter(preds.values()))
@@ -53,8 +61,8 @@ def over_time(preds: dict[str, pd.DataFrame], label: str, out: Path, gap_s: floa
         for variant in ("single", "no_ref", "full"):
             if variant in preds:
                 part = preds[variant][preds[variant]["trial"] == trial].sort_values("t_s")
-                ax.plot(part["t_s"] - t0 + offset, part["pred"], lw=1.1, color=VARIANT_COLORS[variant],
-                        label=VARIANT_LABELS[variant] if i == 0 else None)
+                ax.plot(part["t_s"] - t0 + offset, part["pred"], lw=1.1, color=_colour(looks, variant),
+                        label=_label(looks, variant) if i == 0 else None)
         ax.text(offset, 1.0, ref["tool"].iloc[0].replace("_", " "), transform=ax.get_xaxis_transform(),
                 va="bottom", fontsize=8)
         offset += ref["t_s"].max() - t0 + gap_s
@@ -68,7 +76,7 @@ def over_time(preds: dict[str, pd.DataFrame], label: str, out: Path, gap_s: floa
     close(fig)
 
 
-def per_tool_bars(per_tool: dict[str, pd.DataFrame], out: Path) -> None:
+def per_tool_bars(per_tool: dict[str, pd.DataFrame], out: Path, *, looks: dict[str, Variant]) -> None:
     """Fig. 7: mean |error| per tool with its std, one bar per variant."""
     variants = list(per_tool)
     tools = sorted(set().union(*(set(t["tool"]) for t in per_tool.values())))
@@ -77,7 +85,7 @@ def per_tool_bars(per_tool: dict[str, pd.DataFrame], out: Path) -> None:
     for k, v in enumerate(variants):
         t = per_tool[v].set_index("tool").reindex(tools)
         ax.bar(np.arange(len(tools)) + (k - (len(variants) - 1) / 2) * width, t["mae"], width,
-               yerr=t["std_abs_error"], capsize=2, color=VARIANT_COLORS.get(v), label=VARIANT_LABELS.get(v, v))
+               yerr=t["std_abs_error"], capsize=2, color=_colour(looks, v), label=_label(looks, v))
     ax.set_xticks(range(len(tools)), [t.replace("_", " ") for t in tools])
     ax.set_ylabel("|error| (N), mean ± std")
     ax.set_title("Error per tool")
@@ -86,7 +94,7 @@ def per_tool_bars(per_tool: dict[str, pd.DataFrame], out: Path) -> None:
     close(fig)
 
 
-def window_heatmap(per_window: dict[str, pd.DataFrame], out: Path) -> None:
+def window_heatmap(per_window: dict[str, pd.DataFrame], out: Path, *, looks: dict[str, Variant]) -> None:
     """Fig. 8: MAE per force window (columns) and variant (rows), with the frame counts."""
     variants = list(per_window)
     windows = list(per_window[variants[0]]["window"].astype(str))
@@ -102,14 +110,14 @@ def window_heatmap(per_window: dict[str, pd.DataFrame], out: Path) -> None:
                 ax.text(j, i, f"{grid[i, j]:.2f}", ha="center", va="center", fontsize=8,
                         color="white" if grid[i, j] > np.nanmax(grid) * 0.6 else "black")
     ax.set_xticks(range(len(windows)), [f"{w}\nn={c}" for w, c in zip(windows, counts)], fontsize=7)
-    ax.set_yticks(range(len(variants)), [VARIANT_LABELS.get(v, v) for v in variants])
+    ax.set_yticks(range(len(variants)), [_label(looks, v) for v in variants])
     fig.colorbar(im, ax=ax, label="MAE (N)")
     ax.set_title("Error per force window (test set)")
     save_figure(out, fig)
     close(fig)
 
 
-def regression_grid(preds: dict[str, pd.DataFrame], metrics: dict[str, dict], label: str, out: Path) -> None:
+def regression_grid(preds: dict[str, pd.DataFrame], metrics: dict[str, dict], label: str, out: Path, *, looks: dict[str, Variant]) -> None:
     """Fig. 9/10: predicted against true force per variant, with R², MAE and the fitted line."""
     variants = list(preds)
     cols = 2 if len(variants) > 1 else 1
@@ -118,11 +126,11 @@ def regression_grid(preds: dict[str, pd.DataFrame], metrics: dict[str, dict], la
     hi = max(max(p["true"].max(), p["pred"].max()) for p in preds.values())
     for ax, v in zip(axes.flat, variants):
         p, m = preds[v], metrics[v]
-        ax.plot(p["true"], p["pred"], ".", ms=2, alpha=0.35, color=VARIANT_COLORS.get(v, "#4C72B0"))
+        ax.plot(p["true"], p["pred"], ".", ms=2, alpha=0.35, color=_colour(looks, v, "#4C72B0"))
         ax.plot([0, hi], [0, hi], "k--", lw=0.8)
         xs = np.array([0, hi])
         ax.plot(xs, m["slope"] * xs + m["intercept"], color="k", lw=1.0)
-        ax.set_title(f"{VARIANT_LABELS.get(v, v)}\nR² {m['r2']:.4f}, MAE {m['mae']:.3f} N", fontsize=9)
+        ax.set_title(f"{_label(looks, v)}\nR² {m['r2']:.4f}, MAE {m['mae']:.3f} N", fontsize=9)
         ax.set_xlabel(f"true {label} (N)")
         ax.set_ylabel(f"predicted {label} (N)")
         ax.set_xlim(-0.5, hi + 0.5)
@@ -133,7 +141,7 @@ def regression_grid(preds: dict[str, pd.DataFrame], metrics: dict[str, dict], la
     close(fig)
 
 
-def pareto(runs: pd.DataFrame, out: Path) -> None:
+def pareto(runs: pd.DataFrame, out: Path, *, looks: dict[str, Variant]) -> None:
     """Error against run time: MAE vs training time and vs inference latency for every model trained
     (columns run, variant, split, mae, train_s, latency_ms). Runs on repeat 0 of the default split
     (the variants and the sweep) are labelled and give the Pareto front, since they share a test
@@ -147,7 +155,7 @@ def pareto(runs: pd.DataFrame, out: Path) -> None:
         for row, main in zip(runs.itertuples(), labelled):
             loto = row.split.startswith("loto_")
             ax.plot(getattr(row, col), row.mae, "x" if loto else "o", ms=6 if main else 4, alpha=1.0 if main else 0.5,
-                    color=VARIANT_COLORS.get(row.variant, "#4C72B0"))
+                    color=_colour(looks, row.variant, "#4C72B0"))
             if main:
                 ax.annotate(row.run, (getattr(row, col), row.mae), fontsize=7, xytext=(3, 3), textcoords="offset points")
         pts = runs[labelled].sort_values(col)
@@ -172,7 +180,7 @@ BASELINE_LABELS = {"mean_predictor": "mean predictor", "tactile_rmse_linear": "t
                    "one_finger_rmse_linear": "tactile RMSE (one finger)"}
 
 
-def interval_bars(scores: dict[str, dict[str, list[float]]], summary: dict[str, dict], label: str, out: Path) -> None:
+def interval_bars(scores: dict[str, dict[str, list[float]]], summary: dict[str, dict], label: str, out: Path, *, looks: dict[str, Variant]) -> None:
     """Variants and baselines over the repeated splits: mean with its 95 % interval, and each split's
     value as a dot; MAE and R² side by side."""
     names = list(scores)
@@ -181,7 +189,7 @@ def interval_bars(scores: dict[str, dict[str, list[float]]], summary: dict[str, 
     for ax, m, title in ((axes[0], "mae", f"MAE of {label} force (N)"), (axes[1], "r2", "R²")):
         for yi, name in zip(y, names):
             s = summary[name][m]
-            color = VARIANT_COLORS.get(name, "0.45")
+            color = _colour(looks, name, "0.45")
             if np.isfinite(s["low"]):
                 ax.plot([s["low"], s["high"]], [yi, yi], "-", lw=2.5, color=color, alpha=0.6)
             ax.plot(s["mean"], yi, "D", ms=6, color=color)
@@ -189,20 +197,20 @@ def interval_bars(scores: dict[str, dict[str, list[float]]], summary: dict[str, 
         ax.set_xlabel(title)
         if m == "r2":
             ax.set_xlim(max(-0.2, ax.get_xlim()[0]), 1.0)
-    axes[0].set_yticks(y, [VARIANT_LABELS.get(n, BASELINE_LABELS.get(n, n)) for n in names], fontsize=8)
+    axes[0].set_yticks(y, [_label(looks, n, BASELINE_LABELS.get(n, n)) for n in names], fontsize=8)
     n = summary[names[0]]["mae"]["n"]
     fig.suptitle(f"Over {n} repeated trial splits: mean (◆), 95 % interval (bar), each split (•)")
     save_figure(out, fig)
     close(fig)
 
 
-def loto_bars(loto: dict, label: str, out: Path) -> None:
+def loto_bars(loto: dict, label: str, out: Path, *, looks: dict[str, Variant]) -> None:
     """Full model, leave-one-tool-out: MAE and R² per held-out tool, with the mean over tools and its
     95 % interval as a band."""
     tools = list(loto["per_tool"])
     fig, axes = figure(7.5, 3.0, ncols=2)
     for ax, m, title in ((axes[0], "mae", f"MAE of {label} force (N)"), (axes[1], "r2", "R²")):
-        ax.bar(range(len(tools)), [loto["per_tool"][t][m] for t in tools], color=VARIANT_COLORS["full"], alpha=0.8)
+        ax.bar(range(len(tools)), [loto["per_tool"][t][m] for t in tools], color=_colour(looks, "full", "#4C72B0"), alpha=0.8)
         s = loto["over_tools"][m]
         ax.axhline(s["mean"], color="k", lw=1, label=f"mean {s['mean']:.3f}")
         if np.isfinite(s["low"]):

@@ -4,7 +4,7 @@ Runs live in results/<build>/<scene>/models/<run>/ (eval.json, predictions.parqu
 explained in ``tool/runs.py``. Repeat 0 of the default split is the one the per-run figures and
 the ``variants`` table draw; every score is also reported over all repeats (mean, std, 95 %
 interval), with paired differences between variants and each variant's verdict against the
-baselines that have its information (``evaluate.LIKE_FOR_LIKE``).
+baselines that have its information (its params.yaml ``tool_variants`` entry's ``baseline``).
 """
 
 from __future__ import annotations
@@ -22,9 +22,8 @@ from tactilepipe.core.intervals import interval
 from tactilepipe.core.tables import write_table
 from tactilepipe.tool.report import figures_models as fm
 from tactilepipe.tool.report import verdicts
-from tactilepipe.tool.model.variants import chosen_variants
-from tactilepipe.tool.model.evaluate import (BASELINES, LIKE_FOR_LIKE, baselines, evaluate, rest_frame_rmse_features,
-                                       tactile_rmse_features)
+from tactilepipe.tool.model.variants import BASELINES, defined_variants
+from tactilepipe.tool.model.evaluate import baselines, evaluate, rest_frame_rmse_features, tactile_rmse_features
 from tactilepipe.tool.data.loader import ToolFrames
 from tactilepipe.tool.runs import run_spec, sweep_run_name
 from tactilepipe.tool.scenes import scene_label
@@ -53,7 +52,7 @@ def plan_runs(tool_train: dict, runs: list[str]) -> RunPlan:
             plan.loto[tool] = run
         else:
             by_repeat.setdefault(variant, {})[repeat] = run
-    for v in chosen_variants(tool_train["variants"]):
+    for v in tool_train["variants"]:
         reps = by_repeat.get(v, {})
         if sorted(reps) != list(range(len(reps))) or not reps:
             raise TactilepipeError(f"tool report: variant {v} has runs for repeats {sorted(reps)}; "
@@ -88,8 +87,11 @@ def baseline_draws(data: ToolFrames, splits: list[dict]) -> list[dict[str, dict]
     return out
 
 
-def build_model_report(scene_dir: Path, scene: str, tool_train: dict, runs: list[str]) -> dict:
+def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_variants: dict, runs: list[str]) -> dict:
+    """metrics.json, tables and figures of ``runs``; ``tool_train`` and ``tool_variants`` are the
+    resolved parameter groups (tool_train.variants a list: core.config.resolve spells out "all")."""
     label = scene_label(scene)
+    looks = defined_variants(tool_variants)
     models, tables, figs = scene_dir / "models", scene_dir / "tables", scene_dir / "figures"
     plan = plan_runs(tool_train, runs)
     variants = list(plan.repeats)
@@ -115,12 +117,12 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, runs: list
     metrics = {}
     for v in variants:
         e0 = evals[plan.repeats[v][0]]
-        own = [LIKE_FOR_LIKE[v], "mean_predictor"]
+        own = [looks[v].baseline, "mean_predictor"]
         against = {b: verdicts.versus(scores[v], scores[b], ratio) for b in own}
         metrics[v] = {k: e0[k] for k in SPLIT_0_KEYS} | {"per_split": scores[v], "over_splits": summary[v]}
         if v != "full" and "full" in scores:
             metrics[v]["minus_full"] = verdicts.minus(scores[v], scores["full"], ratio)
-        metrics[v] |= {"like_for_like_baseline": LIKE_FOR_LIKE[v], "versus_baselines": against,
+        metrics[v] |= {"like_for_like_baseline": looks[v].baseline, "versus_baselines": against,
                        "beats_baselines": all(a["beats"] for a in against.values())}
     metrics["baselines"] = {b: {m: base[0][b][m] for m in verdicts.METRICS} | {"per_split": scores[b],
                                                                              "over_splits": summary[b]}
@@ -190,14 +192,14 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, runs: list
     p0 = {v: preds[plan.repeats[v][0]] for v in variants}
     e0 = {v: evals[plan.repeats[v][0]] for v in variants}
     fm.sorted_predictions(p0["full"], label, figs / "sorted_predictions.png")
-    fm.over_time(p0, label, figs / "over_time.png")
-    fm.per_tool_bars({v: pd.DataFrame(e0[v]["per_tool"]) for v in variants}, figs / "per_tool.png")
-    fm.window_heatmap({v: pd.DataFrame(e0[v]["per_window"]) for v in variants}, figs / "window_heatmap.png")
-    fm.regression_grid(p0, e0, label, figs / "regression.png")
-    fm.pareto(every, figs / "error_vs_runtime.png")
-    fm.interval_bars(scores, summary, label, figs / "intervals.png")
+    fm.over_time(p0, label, figs / "over_time.png", looks=looks)
+    fm.per_tool_bars({v: pd.DataFrame(e0[v]["per_tool"]) for v in variants}, figs / "per_tool.png", looks=looks)
+    fm.window_heatmap({v: pd.DataFrame(e0[v]["per_window"]) for v in variants}, figs / "window_heatmap.png", looks=looks)
+    fm.regression_grid(p0, e0, label, figs / "regression.png", looks=looks)
+    fm.pareto(every, figs / "error_vs_runtime.png", looks=looks)
+    fm.interval_bars(scores, summary, label, figs / "intervals.png", looks=looks)
     if plan.loto:
-        fm.loto_bars(metrics["loto"], label, figs / "loto.png")
+        fm.loto_bars(metrics["loto"], label, figs / "loto.png", looks=looks)
     return metrics
 
 
