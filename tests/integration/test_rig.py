@@ -182,6 +182,7 @@ def test_live_on_a_recorded_trial_gives_the_estimates_of_predict(rig, tmp_path):
     assert "frames skipped" in live.stdout and "stopped early" in live.stdout     # the replay ended
 
 
+@pytest.mark.extended
 def test_a_recorded_session_runs_through_the_pipeline_with_no_step_by_hand(rig, tmp_path):
     """Trials of two tools recorded from the stand-in, then the tool_normal scene at the smoke
     scale by Snakemake alone: ingest, clock alignment, dataset, splits, every model, the reports."""

@@ -97,6 +97,7 @@ def project(tmp_path_factory, stand_ins, server) -> Path:
     shutil.rmtree(wd, ignore_errors=True)
 
 
+@pytest.mark.extended
 def test_import_unpack_ingest_train_and_published_check_run_through_dvc_repro(project, stand_ins):
     study = project / STUDY
     assert yaml.safe_load((study / "raw/downloads/data_normal.zip.dvc").read_text())["deps"][0]["path"].startswith(

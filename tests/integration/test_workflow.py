@@ -358,3 +358,20 @@ def test_a_training_key_re_runs_exactly_the_runs_that_read_it(smoke_build: Path,
     assert faster == _trainings(TOOL_SCENES, every) | reports, faster
     assert not {rule for rule, _w in sized | faster} & UPSTREAM_OF_TRAINING
     assert "Nothing to be done" in snakemake(wd, "-n", "--config", "scale=smoke").stdout   # the dry runs wrote no stamp
+
+
+def test_a_simulator_key_re_runs_only_the_scenes_that_simulate_with_it(smoke_build: Path, tmp_path: Path):
+    """simulate_volume describes the lift rig and its sensor: a key of the lift (the grip's
+    repeatability) plans the volume scene again and nothing of the drift or tool scenes; a key of
+    the sensor (its noise), which the drift simulator reads too, plans both, and no tool job."""
+    wd = linked_copy(smoke_build, tmp_path / "wd")       # dry runs only
+    lift = _planned_jobs(snakemake(wd, "-n", "--config", "scale=smoke", 'simulate_volume={"grip_force_rel_std": 0.05}'))
+    rules = {rule for rule, _w in lift}
+    assert {"volume_simulate", "papillarray_ingest", "volume_dataset", "volume_report"} <= rules, rules
+    assert not any(rule.startswith(("drift_", "tool_")) for rule in rules), rules
+    assert all(w.startswith("scene=volume,") for rule, w in lift if rule == "papillarray_ingest")
+    sensor = {rule for rule, _w in _planned_jobs(snakemake(wd, "-n", "--config", "scale=smoke",
+                                                           'simulate_volume={"noise_std_n": 0.02}'))}
+    assert {"volume_simulate", "drift_simulate", "drift_report", "volume_report"} <= sensor, sensor
+    assert not any(rule.startswith("tool_") for rule in sensor), sensor
+    assert "Nothing to be done" in snakemake(wd, "-n", "--config", "scale=smoke").stdout   # the dry runs wrote no stamp
