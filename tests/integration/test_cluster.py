@@ -274,7 +274,7 @@ def test_smoke_scale_through_slurm_equals_the_local_run(slurm_cluster, smoke_bui
     local = set(re.findall(r"(?m)^localrule (\w+):$", log))
     assert local == {"papillarray_ingest", "tool_split", "volume_split"}, local    # the localrules
     assert {"tool_simulate", "tool_ingest", "tool_dataset", "tool_train", "volume_train", "drift_report"} <= set(planned)
-    assert len(submitted) == sum(n for rule, n in planned.items() if rule not in local) > 20
+    assert len(submitted) == sum(n for rule, n in planned.items() if rule not in local) >= 20
     slurm_logs = list((cluster / ".snakemake/slurm_logs").rglob("*.log"))
     assert {p.stem for p in slurm_logs} == set(submitted.values())
     records = jobcomp.read_text().splitlines()[before:]
