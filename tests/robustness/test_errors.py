@@ -59,7 +59,8 @@ def test_checkpoint_with_bad_metadata_names_the_file(tmp_path):
     torch.save({"format": CHECKPOINT_FORMAT, "meta": {"variant": "tiny", "depth": 18, "image_size": 32},
                 "config": {}, "model": {}}, ckpt)
     with pytest.raises(InputError, match=rf"^{re.escape(str(ckpt))}: metadata: unknown model variant 'tiny' "
-                                         r"\(one of full"):
+                                         r"without its definition \(sensors, gam\): the names known without one "
+                                         r"are full, no_ref"):
         load_model(ckpt)
 
 
