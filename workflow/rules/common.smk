@@ -127,12 +127,12 @@ CONTENT_STAMPS = ".tactilepipe/content"
 
 
 @cache
-def content_stamp(scene, session, unit, files, output, list_files=None):
+def content_stamp(scene, session, unit, files, output, trial=None):
     """An input of the job that ingests ``files`` (a tuple, of raw/<scene>/<session>) into
     ``output``: a stamp of their content hashes, rewritten when one changes and dated when the
     change reached the disk, so a file changed with its old time kept (cp -p, rsync -t, cp -a)
     re-runs the job (pipeline/manifest.py). Local state, not versioned; a dry run writes nothing.
-    ``list_files`` lists them again once they exist, where the list comes from the disk."""
+    ``trial``: a tool trial whose files are listed from the disk (tool_trial_files), again once they exist."""
     name = f"{scene}/{session}/{unit}.json"
     scratch = Path(_dry_run_scratch()) / "changed-content" / name if workflow.dryrun else None
     stamp, found = f"{CONTENT_STAMPS}/{name}", _session_manifest(f"raw/{scene}/{session}")
@@ -140,7 +140,7 @@ def content_stamp(scene, session, unit, files, output, list_files=None):
     if change:
         print(f"{CONTENT_STAMPS}/{name}: {change}", file=sys.stderr, flush=True)
     if not workflow.dryrun and manifest.holds_absent(path):
-        _STAMPS_OF_ABSENT_FILES.append((stamp, found, list_files or (lambda: files), output))
+        _STAMPS_OF_ABSENT_FILES.append((stamp, found, files, output, trial))
     _tell_snakemake_it_exists(path)
     return str(path)
 
@@ -151,8 +151,8 @@ _STAMPS_OF_ABSENT_FILES = []
 
 
 onsuccess:
-    for stamp, found, list_files, output in _STAMPS_OF_ABSENT_FILES:
-        manifest.update_stamp(stamp, found, list(list_files()), output)
+    for stamp, found, files, output, trial in _STAMPS_OF_ABSENT_FILES:
+        manifest.update_stamp(stamp, found, list(tool_trial_files(*trial) if trial else files), output)
 
 
 @cache
@@ -350,13 +350,16 @@ def tool_trial_input(w):
     return trial_files(path, fmt, f"raw/tool/{w.session}")
 
 
+def tool_trial_files(session, trial):
+    """The files of a trial as they are on the disk now (a simulated trial's, once written)."""
+    path, fmt = _tool_trial(session, trial)
+    return tuple(trial_files(path, fmt, f"raw/tool/{session}"))
+
+
 def tool_trial_content(w):
     """The content stamp of every file of a trial (a simulated trial's too) and its session facts."""
-    def list_files():
-        path, fmt = _tool_trial(w.session, w.trial)
-        return tuple(trial_files(path, fmt, f"raw/tool/{w.session}"))
-    return content_stamp("tool", w.session, w.trial, list_files(), f"{RESULTS}/tool/shards/{w.session}/{w.trial}.parquet",
-                         list_files)
+    return content_stamp("tool", w.session, w.trial, tool_trial_files(w.session, w.trial),
+                         f"{RESULTS}/tool/shards/{w.session}/{w.trial}.parquet", (w.session, w.trial))
 
 
 @cache
