@@ -3,14 +3,14 @@
 
 rule drift_report:
     input:
-        shards=drift_shards(),
+        shards=shards("drift"),
         meta=f"raw/drift/{DRIFT_SESSION}/session.json",
         code=stage_code("drift-report"),
         params=param_stamp("drift-report"),
-        raw=drift_raw_inputs(),
+        raw=session_files("drift"),
         provenance=lambda w: provenance_inputs("drift"),
     output:
-        reported(DRIFT_TARGETS, "drift"),
+        reported(scene_targets(["drift"]), "drift"),
         series=f"{DRIFT}/drift_series.csv",
         fits=f"{DRIFT}/fits.csv",
     params:

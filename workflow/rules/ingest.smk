@@ -10,8 +10,7 @@ localrules:
 rule papillarray_ingest:
     input:
         bag="raw/{scene}/{session}/{stem}.bag",
-        content=lambda w: content_stamp(w.scene, w.session, w.stem, (f"raw/{w.scene}/{w.session}/{w.stem}.bag",),
-                                        f"{RESULTS}/{w.scene}/shards/{w.session}/{w.stem}.parquet"),
+        content=content_stamp,
         code=stage_code("papillarray-ingest"),
         params=param_stamp("papillarray-ingest"),
     output:

@@ -6,7 +6,7 @@ rule volume_simulate:
         code=stage_code("volume-simulate"),
         params=param_stamp("volume-simulate"),
     output:
-        bags=[f"raw/volume/{{session}}/{stem}.bag" for stem in volume_bag_stems("sim-")],
+        bags=[f"raw/volume/{{session}}/{stem}.bag" for stem in simulated_names("volume")],
         labels="raw/volume/{session}/lifts.csv",
     wildcard_constraints:
         session="sim-[A-Za-z0-9_-]+",
@@ -26,7 +26,7 @@ rule drift_simulate:
         code=stage_code("drift-simulate"),
         params=param_stamp("drift-simulate"),
     output:
-        bags=[f"raw/drift/{{session}}/{name}.bag" for name in drift_plan(P)],
+        bags=[f"raw/drift/{{session}}/{name}.bag" for name in simulated_names("drift")],
         meta="raw/drift/{session}/session.json",
     wildcard_constraints:
         session="sim-[A-Za-z0-9_-]+",

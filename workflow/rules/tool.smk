@@ -12,7 +12,7 @@ rule tool_simulate:
         params=param_stamp("tool-simulate"),
     output:
         cal="raw/tool/{session}/nano17.cal",
-        meta=[f"raw/tool/{{session}}/{name}/meta.json" for name in tool_trial_names("sim-")],
+        meta=[f"raw/tool/{{session}}/{name}/meta.json" for name in simulated_names("tool")],
     wildcard_constraints:
         session="sim-[A-Za-z0-9_-]+",
     params:
@@ -28,15 +28,15 @@ rule tool_simulate:
 
 rule tool_ingest:
     input:
-        trial=tool_trial_input,
-        content=tool_trial_content,
+        trial=ingest_inputs,
+        content=content_stamp,
         code=stage_code("tool-ingest"),
         params=param_stamp("tool-ingest"),
     output:
         f"{RESULTS}/tool/shards/{{session}}/{{trial}}.parquet",
     params:
-        fmt=lambda w: tool_trial_format(w.session, w.trial),
-        path=lambda w: tool_trial_path(w.session, w.trial),
+        fmt=lambda w: SHEET.recording("tool", w.session, w.trial).format,
+        path=lambda w: SHEET.recording("tool", w.session, w.trial).path,
     resources:
         **rule_resources("tool_ingest"),
     log:
@@ -47,7 +47,7 @@ rule tool_ingest:
 
 rule tool_clock_figure:
     input:
-        shards=lambda w: [f"{RESULTS}/tool/shards/{w.session}/{name}.parquet" for name in tool_trial_names(w.session)],
+        shards=lambda w: shards("tool", w.session),
         code=stage_code("tool-clock-figure"),
         params=param_stamp("tool-clock-figure"),
     output:
@@ -62,7 +62,7 @@ rule tool_clock_figure:
 
 rule tool_dataset:
     input:
-        shards=lambda w: tool_shards(scene_label(w.scene)),
+        shards=lambda w: shards("tool", kind=scene_label(w.scene)),
         code=stage_code("tool-dataset"),
         params=param_stamp("tool-dataset"),
     output:
@@ -113,12 +113,12 @@ rule tool_split:
 rule tool_data_report:
     input:
         data=rules.tool_dataset.output,
-        raw=lambda w: tool_raw_inputs(scene_label(w.scene)),
+        raw=lambda w: SHEET.trial_inputs(scene_label(w.scene)),   # the pressing strip shows their frames
         code=stage_code("tool-data-report"),
         params=param_stamp("tool-data-report"),
     output:
         qc=reported([f"{RESULTS}/{{scene}}/qc.md"], "{scene}")[0],
-        figures=reported(expand(RESULTS + "/{{scene}}/figures/{fig}.png", fig=TOOL_DATA_FIGURES), "{scene}"),
+        figures=reported(expand(RESULTS + "/{{scene}}/figures/{fig}.png", fig=scenes.TOOL_DATA_FIGURES), "{scene}"),
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     resources:
@@ -133,21 +133,12 @@ rule tool_data:
     # the data stages of both tool scenes, without models (DVC stage tool_data)
     localrule: True
     input:
-        tool_data_targets("tool_normal") + tool_data_targets("tool_shear"),
+        scene_targets(["tool_normal", "tool_shear"], data_only=True),
 
 
 # --- models ------------------------------------------------------------------------------------
 # Runs (tool/runs.py): each variant on every repeat of the default split, the full model leaving
 # out each tool in turn, and the sweep (other depth / input size, for error against run time).
-
-
-def tool_runs(scene):
-    return run_names.tool_runs(P["tool_train"], P["tool_split"]["repeats"], tool_names(scene_label(scene)))
-
-
-def run_spec(run):
-    """(variant, split, depth, image_size) of a run name."""
-    return run_names.run_spec(P["tool_train"], run)
 
 
 rule tool_train:
@@ -182,7 +173,7 @@ rule tool_model_report:
                               f=["eval.json", "predictions.parquet"]),
         splits=lambda w: [f"{RESULTS}/{w.scene}/splits/{run_spec(r)[1]}.json" for r in tool_runs(w.scene)],
         data=rules.tool_dataset.output,
-        raw=tool_session_files(),
+        raw=session_files("tool"),
         code=stage_code("tool-model-report"),
         params=param_stamp("tool-model-report"),
         provenance=lambda w: provenance_inputs(w.scene),
@@ -190,8 +181,8 @@ rule tool_model_report:
         metrics=reported([f"{RESULTS}/{{scene}}/metrics.json"], "{scene}")[0],
         provenance=f"{RESULTS}/{{scene}}/provenance.json",
         runtime=f"{RESULTS}/{{scene}}/runtime.json",
-        tables=reported(expand(RESULTS + "/{{scene}}/tables/{t}.md", t=TOOL_MODEL_TABLES), "{scene}"),
-        figures=reported(expand(RESULTS + "/{{scene}}/figures/{fig}.png", fig=TOOL_MODEL_FIGURES), "{scene}"),
+        tables=reported(expand(RESULTS + "/{{scene}}/tables/{t}.md", t=scenes.tool_model_tables(P)), "{scene}"),
+        figures=reported(expand(RESULTS + "/{{scene}}/figures/{fig}.png", fig=scenes.tool_model_figures(P)), "{scene}"),
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     params:

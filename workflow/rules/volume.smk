@@ -3,7 +3,7 @@
 
 rule volume_dataset:
     input:
-        shards=volume_shards(),
+        shards=shards("volume"),
         labels=[f"raw/volume/{s}/lifts.csv" for s in P["volume_sessions"]],
         code=stage_code("volume-dataset"),
         params=param_stamp("volume-dataset"),
@@ -102,13 +102,13 @@ rule volume_report:
         grid=f"{VOLUME}/mlp/grid.csv",
         baseline=rules.volume_baseline.output,
         qc=f"{VOLUME}/qc.csv",
-        shards=volume_shards(),
-        raw=volume_raw_inputs(),
+        shards=shards("volume"),
+        raw=session_files("volume"),
         code=stage_code("volume-report"),
         params=param_stamp("volume-report"),
         provenance=lambda w: provenance_inputs("volume"),
     output:
-        reported(VOLUME_TARGETS, "volume"),
+        reported(scene_targets(["volume"]), "volume"),
     params:
         provenance=provenance_args("volume"),
     resources:

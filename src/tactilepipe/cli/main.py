@@ -6,7 +6,7 @@ import argparse
 import sys
 
 # importing a study's module declares its commands, in this order in --help
-from tactilepipe.cli import volume, drift, tool, study000, rig, compare  # noqa: F401
+from tactilepipe.cli import volume, drift, tool, study000, rig, compare, sessions  # noqa: F401
 from tactilepipe.cli.common import stage_params
 from tactilepipe.cli.registry import add_commands
 from tactilepipe.core.errors import TactilepipeError

@@ -30,9 +30,10 @@ from dataclasses import dataclass, field
 from tactilepipe.core.errors import InputError
 from tactilepipe.core.intervals import paired_difference
 from tactilepipe.pipeline.layout import results_root
+from tactilepipe.pipeline.scenes import SCENES as SCENE_TABLE
 from tactilepipe.tool.scenes import TOOL_SCENES
 
-SCENES = ("volume", "drift", *TOOL_SCENES)
+SCENES = tuple(SCENE_TABLE)
 # stages whose change leaves the draws (splits, folds) alone: the models and their report
 MODEL_STAGES = {"tool-train", "tool-model-report", "volume-train", "volume-gridsearch", "volume-baseline",
                 "volume-report", "drift-report"}
