@@ -233,6 +233,21 @@ def test_library_modules_are_short():
     assert not long, f"modules over 400 lines: {long}"
 
 
+def test_the_workflow_only_wires_and_names_each_snakemake_internal_it_uses():
+    """common.smk stays wiring (its logic is library code), and every Snakemake internal the
+    workflow reaches for is in the decision that says which upstream change it waits for."""
+    common = REPO / "workflow/rules/common.smk"
+    assert len(common.read_text().splitlines()) <= 200
+    decision = (REPO / "docs/decisions/0028-sessions-as-data-and-snakemake-internals.md").read_text()
+    used = set()
+    for path in [*(REPO / "workflow/rules").glob("*.smk"), *(REPO / "workflow/scripts").glob("*.py")]:
+        used |= set(re.findall(r"\bworkflow\.(?:iocache\.\w+|dryrun|dag\.\w+|dag)\b|\b_(?:workflow|prepare_dag|build_dag)\b",
+                               path.read_text()))
+    assert used, "the audit found no internal at all: its pattern no longer matches the workflow's code"
+    missing = sorted(u for u in used if u not in decision)
+    assert not missing, f"Snakemake internals used but not named in decision 0028: {missing}"
+
+
 def test_nothing_points_outside_the_repository():
     hits = [f"{name}:{text[:m.start()].count(chr(10)) + 1}: {m.group(0)}"
             for name, text in tracked_text_files() for rx in OUTSIDE for m in rx.finditer(text)]
