@@ -10,8 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tactilepipe.core.config import load_params
 from tactilepipe.core.errors import ConfigError, InputError
+from tactilepipe.pipeline.studies import load_params      # as the workflow validates: every study's checks
 from tactilepipe.volume.dataset import build_dataset
 
 from support.project import REPO

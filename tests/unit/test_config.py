@@ -10,8 +10,9 @@ import yaml
 
 from tactilepipe.cli import main as cli
 from tactilepipe.core.atomic import atomic_path, write_json, write_text
-from tactilepipe.core.config import deep_merge, load_params
+from tactilepipe.core.config import deep_merge
 from tactilepipe.core.errors import ConfigError
+from tactilepipe.pipeline.studies import load_params      # as the workflow validates: every study's checks
 
 
 @pytest.fixture(scope="module")

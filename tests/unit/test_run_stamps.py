@@ -10,9 +10,9 @@ from typing import get_args
 
 import pytest
 
-from tactilepipe.core.config import load_params
 from tactilepipe.core.errors import ConfigError, InputError
 from tactilepipe.pipeline import codedeps, stamps
+from tactilepipe.pipeline.studies import load_params      # as the workflow validates: every study's checks
 from tactilepipe.tool import runs
 from tactilepipe.tool.model.variants import BASELINES, NAMED_ARCHITECTURES, Architecture, defined_variants
 
@@ -141,7 +141,7 @@ def test_params_yaml_must_define_the_full_model():
     raw = yaml.safe_load((REPO / "params.yaml").read_text())
     del raw["tool_variants"]["full"]
     raw["tool_train"]["variants"] = ["no_gam"]
-    from tactilepipe.core.config import resolve
+    from tactilepipe.pipeline.studies import resolve
     with pytest.raises(ConfigError, match="tool_variants must define 'full'"):
         resolve(raw)
 

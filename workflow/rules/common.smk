@@ -8,7 +8,7 @@ from pathlib import Path
 
 import yaml
 
-from tactilepipe.pipeline import codedeps, layout, scenes
+from tactilepipe.pipeline import codedeps, layout, scenes, studies
 from tactilepipe.pipeline.sessions import SessionSheet
 from tactilepipe.pipeline.stamp_keeper import StampKeeper
 from tactilepipe.core.config import changed_leaves, resolve, typed_like
@@ -26,7 +26,7 @@ config.update(typed_like(config, _FILE_PARAMS))
 # through its parameter stamp (param_stamp), so each sees the same values.
 OVERRIDES = changed_leaves(config, _FILE_PARAMS)
 try:
-    P = resolve(dict(config), "params.yaml (+ --config)", OVERRIDES)
+    P = resolve(dict(config), "params.yaml (+ --config)", OVERRIDES, studies.CHECKS)   # every study's checks
 except TactilepipeError as exc:
     raise WorkflowError(str(exc)) from None
 CLI = f"{shlex.quote(sys.executable)} -m tactilepipe"

@@ -21,12 +21,14 @@ def param_overrides(args) -> dict:
     return overrides
 
 
-def stage_params(args, *keys: str) -> dict:
+def stage_params(args, *keys: str, checks=()) -> dict:
     """The stage's parameters, cut down to ``keys`` (dotted, e.g. "tool_train.lr": the ``params`` of
     its declaration): reading any other key raises. Under the workflow they come from the stage's
-    stamp (``--stamp results/<build>/params/<stage>.json``), the values Snakemake validated and records, so
-    a job receives exactly what its stamp says; by hand, from params.yaml (+ --override), resolved
-    for the scale."""
+    stamp (``--stamp results/<build>/params/<stage>.json``), the values Snakemake validated (every
+    study's checks) and records, so a job receives exactly what its stamp says; by hand, from
+    params.yaml (+ --override), resolved for the scale and passed through ``checks``, its study's
+    checks (the ``checks=`` of its declaration): not the other studies', so that one study's checks
+    are no code of another study's stages."""
     from tactilepipe.core.config import declared, load_params
     from tactilepipe.pipeline.stamps import stamp_values
     where = f"tactilepipe {args.command}"
@@ -34,7 +36,7 @@ def stage_params(args, *keys: str) -> dict:
         if args.override or args.scale:
             raise ConfigError("--stamp holds the stage's resolved values: give it without --override or --scale")
         return declared(stamp_values(args.stamp, args.command), keys, where)
-    return declared(load_params(args.params, param_overrides(args)), keys, where)
+    return declared(load_params(args.params, param_overrides(args), checks), keys, where)
 
 
 def _progress(iterable, desc: str, total: int | None = None):

@@ -6,11 +6,17 @@ from pathlib import Path
 
 from tactilepipe.cli.common import run_parallel
 from tactilepipe.cli.registry import arg, command
+from tactilepipe.papillarray import checks as papillarray_checks
+
+# the cross-key checks a stage runs on params.yaml by hand: its sensor's (the workflow runs every
+# study's: pipeline/studies.py)
+DRIFT_CHECKS = (papillarray_checks.check,)
 
 
 # The drift rig is the lift rig's sensor: the simulator reads the sensor's keys of simulate_volume,
 # not the lift's, so a change of grip or container re-simulates the lifts only.
 @command("drift-simulate", "write the simulated drift session (ROS1 bags and session.json)",
+         checks=DRIFT_CHECKS,
          params=("seed", "simulate_drift", "simulate_volume.noise_std_n", "simulate_volume.bias_residual_std_n",
                  "simulate_volume.drift_inf_n", "simulate_volume.drift_per_kg_n", "simulate_volume.drift_tau_s",
                  "simulate_volume.contact_tilt_std_deg", "simulate_volume.pillar_height_steps_mm",
@@ -30,6 +36,7 @@ def cmd_drift_simulate(args, p) -> None:
 
 
 @command("drift-report", "metrics.json, fits and figures of the drift study",
+         checks=DRIFT_CHECKS,
          params=("drift",), graph=("drift_session",),
          args=(arg("--in-dir", required=True, help="the scene's results folder"),
                arg("--shards", nargs="+", required=True, help="the recordings' shards"),

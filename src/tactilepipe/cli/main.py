@@ -33,7 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     spec = args.command_spec
     try:
-        p = stage_params(args, *spec.params) if spec.params else {}
+        p = stage_params(args, *spec.params, checks=spec.checks) if spec.params else {}
         status = spec.func(args, p)       # a command may return an exit status (diff: 1 on a regression)
     except TactilepipeError as exc:
         print(f"tactilepipe {args.command}: error: {exc}", file=sys.stderr)

@@ -4,16 +4,20 @@ it reads and the ones the workflow reads to shape its jobs.
 A study's module declares each command on its function::
 
     @command("volume-split", "seeded train/test lift draws stratified by volume",
-           params=("seed", "folds"),
+           params=("seed", "folds"), checks=VOLUME_CHECKS,
            args=(arg("--dataset", required=True), arg("--out", required=True)))
     def cmd_volume_split(args, p): ...
 
 From that one declaration:
 - the command line builds the sub-command (``add_commands``) and hands the function its
-  parameters, cut down to ``params`` (``p``; reading any other key is an error);
+  parameters, cut down to ``params`` (``p``; reading any other key is an error); run by hand, it
+  first runs ``checks``, its study's cross-key checks (``check(p, source)`` of volume/checks.py,
+  tool/checks.py, papillarray/checks.py) on the whole resolved params.yaml; under the workflow
+  a stage reads its stamp, whose values the workflow checked with every study's checks;
 - the workflow (``pipeline/codedeps.py``, which reads the declarations from the source without
   importing them) stamps the values of ``params`` and ``graph`` (results/<build>/params/<name>.json), lists
-  them as the DVC stage's params, and takes the function's imports as the stage's code.
+  them as the DVC stage's params, and takes the function's imports, and those of the names the
+  function and its declaration use (``checks``, argument choices), as the stage's code.
 ``params`` and ``graph`` must be tuples of string literals, so that they can be read that way.
 """
 
@@ -43,6 +47,7 @@ class Command:
     help: str
     params: tuple[str, ...]        # dotted keys of params.yaml the command reads (its only way in)
     graph: tuple[str, ...]         # keys the rules read to decide its jobs or their arguments
+    checks: tuple[Callable, ...]   # its study's cross-key checks, run on params.yaml by hand
     args: tuple[Arg, ...]
     provenance: bool               # takes --provenance-stages / --sessions (a scene's report)
     parser_options: dict           # more of add_parser's keywords (description, formatter_class)
@@ -52,14 +57,19 @@ COMMANDS: dict[str, Command] = {}
 
 
 def command(name: str, help: str, *, params: tuple[str, ...] = (), graph: tuple[str, ...] = (),
-            args: tuple[Arg, ...] = (), provenance: bool = False, **parser_options):
+            checks: tuple[Callable, ...] = (), args: tuple[Arg, ...] = (), provenance: bool = False,
+            **parser_options):
     """Declare the decorated function ``f(args, p)`` as the command ``name``."""
     def register(func: Callable) -> Callable:
         if name in COMMANDS:
             raise TactilepipeError(f"command '{name}' is declared twice ({COMMANDS[name].func.__module__} and "
                                    f"{func.__module__})")
-        COMMANDS[name] = Command(name, func, help, tuple(params), tuple(graph), tuple(args), provenance,
-                                 parser_options)
+        if params and not checks:
+            raise TactilepipeError(f"command '{name}' ({func.__module__}) reads parameters but declares no checks=: "
+                                   f"name its study's (e.g. VOLUME_CHECKS), so that run by hand it refuses what the "
+                                   f"workflow refuses")
+        COMMANDS[name] = Command(name, func, help, tuple(params), tuple(graph), tuple(checks), tuple(args),
+                                 provenance, parser_options)
         return func
     return register
 

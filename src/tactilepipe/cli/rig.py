@@ -7,6 +7,11 @@ import sys
 from pathlib import Path
 
 from tactilepipe.cli.registry import arg, command
+from tactilepipe.tool import checks as tool_checks
+
+# the cross-key checks a stage runs on params.yaml by hand: its study's (the workflow runs every
+# study's: pipeline/studies.py)
+TOOL_CHECKS = (tool_checks.check,)
 
 CAMERA_HELP = "a /dev/video* node, the DIGIT's serial number (e.g. D20262), or a video file / image sequence " \
               "(frame_%%06d.png) played at the mode's rate"
@@ -91,6 +96,7 @@ def cmd_record(args, p) -> int | None:
          description="Load a trained checkpoint, take the zero-force reference pair, then estimate the force for "
                      "every frame pair the cameras deliver; print it with its latency and log it (docs/rig.md).",
          formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+         checks=TOOL_CHECKS,
          params=("tool_ingest.stored_size", "predict"),
          args=(arg("--checkpoint", required=True, help="e.g. results/default/tool_normal/models/full/best.pt"),
                arg("--left", required=True, help=f"left finger's camera: {CAMERA_HELP}"),

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 
 from tactilepipe.cli.registry import arg, command
+from tactilepipe.pipeline import studies
 
 COLUMNS = ("study", "session", "name", "format", "kind", "tool", "path")
 
@@ -13,6 +14,7 @@ COLUMNS = ("study", "session", "name", "format", "kind", "tool", "path")
                      "checked as the workflow checks them: one tab-separated row each",
          params=("volume_sessions", "drift_session", "tool_sessions", "simulate_volume", "simulate_drift",
                  "simulate_tool"),
+         checks=studies.CHECKS,             # the whole file, as the workflow checks it
          args=(arg("--study", choices=["volume", "drift", "tool"], help="only this study's sessions"),))
 def cmd_sessions(args, p) -> None:
     from tactilepipe.pipeline.sessions import SessionSheet

@@ -9,10 +9,16 @@ from pathlib import Path
 
 from tactilepipe.cli.registry import arg, command
 from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.tool import checks as tool_checks
 from tactilepipe.tool.scenes import TOOL_SCENES
+
+# the cross-key checks a stage runs on params.yaml by hand: its study's (the workflow runs every
+# study's: pipeline/studies.py)
+TOOL_CHECKS = (tool_checks.check,)
 
 
 @command("study000-unpack", "check a study-000 archive's size and sha256, unpack it into a public-layout session",
+         checks=TOOL_CHECKS,
          params=("public_data.files", "public_data.session"),
          args=(arg("archive", help="e.g. raw/downloads/data_normal.zip"),
                arg("--name", required=True, help="its entry in params.yaml public_data.files (data_normal, data_shear)"),
@@ -31,6 +37,7 @@ def cmd_study000_unpack(args, p) -> None:
 
 
 @command("tool-evaluate", "evaluate a checkpoint (ours or the public code's) on a tool dataset",
+         checks=TOOL_CHECKS,
          params=("tool_train.device", "public_data.files"),
          args=(arg("--checkpoint", required=True, help="best.pt, or a public best_model_*.pth"),
                arg("--expect", metavar="NAME", help="first check the checkpoint's size and sha256 against params.yaml "
@@ -55,6 +62,7 @@ def cmd_tool_evaluate(args, p) -> None:
 
 
 @command("study000-table", "study 000's protocols (or published weights) beside the paper",
+         checks=TOOL_CHECKS,
          params=("public_data.paper",),
          args=(arg("--evals", nargs="*", default=[], help="eval.json of the runs full_public_frame, full_trial"),
                arg("--published", help="eval.json of the published weights over every frame"),

@@ -8,12 +8,18 @@ from pathlib import Path
 
 from tactilepipe.cli.common import run_parallel
 from tactilepipe.cli.registry import arg, command
+from tactilepipe.tool import checks as tool_checks
 from tactilepipe.tool.scenes import TOOL_SCENES, scene_label
+
+# the cross-key checks a stage runs on params.yaml by hand: its study's (the workflow runs every
+# study's: pipeline/studies.py)
+TOOL_CHECKS = (tool_checks.check,)
 
 SCENE = arg("--scene", choices=list(TOOL_SCENES), required=True)
 
 
 @command("tool-simulate", "write a simulated tool session (the rig's layout: DIGIT frames, Nano17 serial log)",
+         checks=TOOL_CHECKS,
          params=("seed", "simulate_tool"),
          args=(arg("--out-dir", required=True, help="session folder, e.g. raw/tool/sim-default"),
                arg("--trials", nargs="*", help="only these trials (default: the whole session)"),
@@ -29,6 +35,7 @@ def cmd_tool_simulate(args, p) -> None:
 
 
 @command("tool-ingest", "tool trial (native, public or ROS) -> Parquet shard",
+         checks=TOOL_CHECKS,
          params=("tool_ingest",),
          args=(arg("trial", help="trial folder or bag"), arg("--format", choices=["native", "public", "ros"], required=True),
                arg("--out", required=True)))
@@ -66,6 +73,7 @@ def cmd_realism(args, p) -> None:
 
 
 @command("tool-dataset", "sync frames and force, references -> arrays",
+         checks=TOOL_CHECKS,
          params=("tool_sync",), graph=("tool_sessions",),
          args=(arg("--kind", choices=["normal", "shear"], required=True), arg("--shards", nargs="+", required=True),
                arg("--out-dir", required=True)))
@@ -75,6 +83,7 @@ def cmd_tool_dataset(args, p) -> None:
 
 
 @command("tool-split", "train/validation/test split of a tool dataset",
+         checks=TOOL_CHECKS,
          params=("seed", "tool_split.fractions", "tool_split.holdout_pose"),
          args=(arg("--data-dir", required=True),
                arg("--split", required=True, help="frame | public_frame | trial | lopo, each with an optional _r<k> "
@@ -91,6 +100,7 @@ def cmd_tool_split(args, p) -> None:
 
 
 @command("tool-train", "train one tool-force model run, predict its test set",
+         checks=TOOL_CHECKS,
          params=("seed", "tool_train.lr", "tool_train.lr_schedule", "tool_train.batch_size", "tool_train.max_epochs",
                  "tool_train.patience", "tool_train.max_train_batches_per_epoch", "tool_train.bn_recalibration_batches",
                  "tool_train.device", "tool_train.amp", "tool_train.num_threads", "tool_train.gam_channel_gate",
@@ -134,6 +144,7 @@ def _train_run(args) -> dict:
 
 
 @command("tool-model-report", "metrics.json, tables and figures of a tool scene's models",
+         checks=TOOL_CHECKS,
          params=("tool_train.variants", "tool_train.split", "tool_train.depth", "tool_train.image_size",
                  "tool_train.sweep", "tool_variants"),
          graph=("tool_sessions", "tool_train.loto", "tool_split.repeats"),
@@ -149,6 +160,7 @@ def cmd_tool_model_report(args, p) -> None:
 
 
 @command("predict", "stream a recorded trial through a trained model",
+         checks=TOOL_CHECKS,
          params=("tool_ingest.ros_topics", "tool_ingest.stored_size", "predict"),
          args=(arg("--checkpoint", required=True, help="e.g. results/default/tool_normal/models/full/best.pt"),
                arg("--trial", required=True, help="trial folder or bag"),
@@ -185,6 +197,7 @@ def cmd_portability(args, p) -> None:
 
 
 @command("tool-data-report", "QC report and data figures of a tool scene",
+         checks=TOOL_CHECKS,
          params=("tool_split.level_n",),
          args=(SCENE, arg("--in-dir", required=True, help="the scene's results folder")))
 def cmd_tool_data_report(args, p) -> None:

@@ -9,12 +9,20 @@ from pathlib import Path
 from tactilepipe.cli.common import run_parallel
 from tactilepipe.cli.registry import arg, command
 from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.papillarray import checks as papillarray_checks
+from tactilepipe.volume import checks as volume_checks
+
+# the cross-key checks a stage runs on params.yaml by hand: the study's own and its sensor's
+# (the workflow runs every study's: pipeline/studies.py)
+VOLUME_CHECKS = (volume_checks.check, papillarray_checks.check)
+PAPILLARRAY_CHECKS = (papillarray_checks.check,)
 
 # the data set and its folds: what the model stages read
 FOLDED = (arg("--dataset", required=True), arg("--folds", required=True))
 
 
 @command("volume-simulate", "write simulated PapillArray lifts (ROS1 bags) of the volume study",
+         checks=VOLUME_CHECKS,
          params=("seed", "simulate_volume"),
          args=(arg("--out-dir", required=True, help="session folder, e.g. raw/volume/sim-default"),
                arg("--lifts", nargs="*", help="only these lifts (default: the whole session)"),
@@ -35,6 +43,7 @@ def cmd_volume_simulate(args, p) -> None:
 
 
 @command("papillarray-ingest", "PapillArray bag(s) -> Parquet shard(s) (the volume and drift studies)",
+         checks=PAPILLARRAY_CHECKS,
          params=("papillarray_ingest",),
          args=(arg("bags", nargs="+", metavar="BAG SHARD", help="pairs: input bag, output shard"),))
 def cmd_papillarray_ingest(args, p) -> None:
@@ -48,6 +57,7 @@ def cmd_papillarray_ingest(args, p) -> None:
 
 
 @command("volume-dataset", "segment the off-table phase of every lift",
+         checks=VOLUME_CHECKS,
          params=("volume_sessions", "segment", "papillarray_axes", "volume_checks"),
          args=(arg("--raw-root", default="raw/volume"), arg("--shard-root", default="results/default/volume/shards"),
                arg("--out", required=True), arg("--qc", required=True)))
@@ -61,6 +71,7 @@ def cmd_volume_dataset(args, p) -> None:
 
 
 @command("volume-split", "seeded train/test lift draws stratified by volume",
+         checks=VOLUME_CHECKS,
          params=("seed", "folds"),
          args=(arg("--dataset", required=True), arg("--out", required=True)))
 def cmd_volume_split(args, p) -> None:
@@ -75,6 +86,7 @@ def cmd_volume_split(args, p) -> None:
 
 
 @command("volume-train", "fit the MLP of one input modality on every fold",
+         checks=VOLUME_CHECKS,
          params=("seed", "volume_sensor", "mlp.modalities", "mlp.hidden_units", "mlp.alpha", "mlp.batch_size",
                  "mlp.learning_rate", "mlp.tol", "mlp.n_iter_no_change", "mlp.max_iter", "mlp.restarts"),
          args=FOLDED + (arg("--modality", required=True), arg("--out-dir", required=True)))
@@ -96,6 +108,7 @@ def cmd_volume_train(args, p) -> None:
 
 
 @command("volume-gridsearch", "MLP grid search on the first fold",
+         checks=VOLUME_CHECKS,
          params=("seed", "volume_sensor", "mlp"),
          args=FOLDED + (arg("--out", required=True),))
 def cmd_volume_gridsearch(args, p) -> None:
@@ -112,6 +125,7 @@ def cmd_volume_gridsearch(args, p) -> None:
 
 
 @command("volume-baseline", "algebraic friction baseline with the mu sweep",
+         checks=VOLUME_CHECKS,
          params=("volume_sensor", "baseline"),
          args=FOLDED + (arg("--out-dir", required=True),))
 def cmd_volume_baseline(args, p) -> None:
@@ -129,6 +143,7 @@ def cmd_volume_baseline(args, p) -> None:
 
 
 @command("volume-report", "metrics.json, tables and figures of the volume study",
+         checks=VOLUME_CHECKS,
          params=("scale", "volume_sessions", "mlp.modalities", "mlp.grid.modality", "mlp.grid.inner_folds",
                  "folds.train_lifts_per_volume", "folds.test_lifts_per_volume"),
          args=(arg("--in-dir", required=True, help="the scene's results folder"),
@@ -142,6 +157,7 @@ def cmd_volume_report(args, p) -> None:
 
 
 @command("volume-regimes", "Table 1 of the volume study under each grasp regime (params.yaml volume_regimes)",
+         checks=VOLUME_CHECKS,
          params=("scale", "seed", "simulate_volume", "segment", "papillarray_axes", "volume_checks",
                  "folds", "mlp", "baseline", "volume_sensor", "volume_regimes"),
          args=(arg("--out-dir", required=True, help="e.g. results/default/volume_regimes"),

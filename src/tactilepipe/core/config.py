@@ -1,8 +1,17 @@
 """Load params.yaml, apply the chosen scale's overlay, validate against the JSON schema.
 
-Snakemake (workflow/rules/common.smk) and the CLI both go through `load_params`, so a stage
+Snakemake (workflow/rules/common.smk) and the CLI both go through `resolve`, so a stage
 sees the same numbers whichever way it is started. The schema is package data generated from the
 parameter models in `tactilepipe.core.parameters` (`make schema`).
+
+What the schema cannot say, because it relates keys, is each study's own check, kept with the
+study (volume/checks.py, tool/checks.py, papillarray/checks.py: ``check(p, source)``, raising
+ConfigError) and handed to `resolve` / `load_params` as ``checks``. Core imports nothing of the
+project, and a check here would be code of every stage: editing one study's check would re-run
+every stage of every study. Who runs which: a stage run by hand, its own study's (the
+``checks=`` of its ``@command``, cli/registry.py); the workflow, ``tactilepipe diff`` and every
+other caller that validates a whole params.yaml, every study's (`tactilepipe.pipeline.studies`).
+Without ``checks`` only the schema, the scale and finiteness are checked.
 """
 
 from __future__ import annotations
@@ -14,7 +23,7 @@ import re
 from functools import cache
 from importlib.resources import files
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Iterable
 
 import jsonschema
 import yaml
@@ -144,11 +153,16 @@ def validate(raw: dict, source: str = "params.yaml") -> None:
         raise ConfigError(_format_error(errors[0], source))
 
 
-def resolve(raw: dict, source: str = "params.yaml", overrides: dict | None = None) -> dict[str, Any]:
+Check = Callable[[dict, str], None]
+
+
+def resolve(raw: dict, source: str = "params.yaml", overrides: dict | None = None,
+            checks: Iterable[Check] = ()) -> dict[str, Any]:
     """Validate ``raw`` (params.yaml plus overrides) and return it with its scale applied.
 
     Keys given in ``overrides`` are applied again after the scale's overlay, so a value asked for
-    explicitly wins over the scale's.
+    explicitly wins over the scale's. Each of ``checks`` (a study's ``check(p, source)``) then sees
+    the resolved values and raises ConfigError on a disagreement between keys.
     """
     if not isinstance(raw, dict):
         raise ConfigError(f"{source}: expected a mapping of parameter groups, got {type(raw).__name__}")
@@ -165,7 +179,8 @@ def resolve(raw: dict, source: str = "params.yaml", overrides: dict | None = Non
         resolved[key] = [s.replace("{scale}", scale) for s in resolved[key]]
     resolved["drift_session"] = resolved["drift_session"].replace("{scale}", scale)
     resolved["build"] = resolved["build"].replace("{scale}", scale)
-    _check_consistency(resolved, source)
+    for check in checks:
+        check(resolved, source)
     if resolved["tool_train"]["variants"] == "all":
         # every defined variant in the file's order, spelled out: a stamp's values are written with
         # sorted keys, and a stage reading "all" from one would see them alphabetically
@@ -173,61 +188,10 @@ def resolve(raw: dict, source: str = "params.yaml", overrides: dict | None = Non
     return resolved
 
 
-def _check_consistency(p: dict, source: str) -> None:
-    folds, sim = p["folds"], p["simulate_volume"]
-    need = folds["train_lifts_per_volume"] + folds["test_lifts_per_volume"]
-    if any(s.startswith("sim-") for s in p["volume_sessions"]) and sim["lifts_per_volume"] < need:
-        raise ConfigError(
-            f"{source}: simulate_volume.lifts_per_volume={sim['lifts_per_volume']} is fewer than the "
-            f"{need} lifts per volume the folds need (train {folds['train_lifts_per_volume']} + "
-            f"test {folds['test_lifts_per_volume']})")
-    if p["baseline"]["mu_min"] >= p["baseline"]["mu_max"]:
-        raise ConfigError(f"{source}: baseline.mu_min must be below baseline.mu_max")
-    if p["mlp"]["grid"]["modality"] not in p["mlp"]["modalities"]:
-        raise ConfigError(f"{source}: mlp.grid.modality '{p['mlp']['grid']['modality']}' is not one of "
-                          f"mlp.modalities {sorted(p['mlp']['modalities'])}")
-    for sensor, axes in p["papillarray_axes"].items():
-        if sorted(v[1] for v in axes.values()) != ["x", "y", "z"]:
-            raise ConfigError(f"{source}: papillarray_axes.{sensor} must take each recorded axis x, y, z once "
-                              f"(got {axes})")
-    stored = p["tool_ingest"]["stored_size"]
-    for where, size in [("tool_train.image_size", p["tool_train"]["image_size"])] + \
-            [(f"tool_train.sweep[{i}].image_size", s["image_size"]) for i, s in enumerate(p["tool_train"]["sweep"])]:
-        if size > stored:
-            raise ConfigError(f"{source}: {where}={size} is larger than tool_ingest.stored_size={stored}: the model "
-                              f"would train on upsampled frames (store them larger, or train smaller)")
-    _check_variants(p["tool_variants"], p["tool_train"]["variants"], source)
-    if abs(sum(p["tool_split"]["fractions"]) - 1.0) > 1e-6:
-        raise ConfigError(f"{source}: tool_split.fractions must sum to 1 (got {p['tool_split']['fractions']})")
-    if p["simulate_volume"]["friction_kinetic"] > p["simulate_volume"]["friction_static"]:
-        raise ConfigError(f"{source}: simulate_volume.friction_kinetic must not exceed friction_static")
-    pos = sim["position"]
-    fullest = max(sim["volumes_ml"] + sim["unseen_volumes_ml"])
-    if pos["container_capped"] and pos["container_capacity_ml"] <= fullest:
-        raise ConfigError(f"{source}: simulate_volume.position.container_capacity_ml={pos['container_capacity_ml']:g} "
-                          f"leaves no headspace above the fullest volume ({fullest:g} ml)")
-
-
-def _check_variants(variants: dict, chosen, source: str) -> None:
-    if "full" not in variants:
-        raise ConfigError(f"{source}: tool_variants must define 'full', the published model (the leave-one-tool-out, "
-                          f"sweep and study-000 runs train it)")
-    for name, v in variants.items():
-        if name.startswith("full_") or re.search(r"_r[0-9]+$", name):
-            raise ConfigError(f"{source}: tool_variants.{name}: the name reads as another run (<variant>_r<k> is a "
-                              f"variant's repeat k, full_<...> one of the full model's other runs): choose another")
-        for a, b in v["sensors"]:
-            if a >= b:
-                raise ConfigError(f"{source}: tool_variants.{name}.sensors: [{a}, {b}] is no channel slice (start must "
-                                  f"be below stop, within the 4 input channels)")
-    unknown = [v for v in chosen if v not in variants] if chosen != "all" else []
-    if unknown:
-        raise ConfigError(f"{source}: tool_train.variants: unknown variant(s) {unknown} (tool_variants defines "
-                          f"{', '.join(variants)}; or 'all')")
-
-
-def load_params(path: str | Path = DEFAULT_PARAMS, overrides: dict | None = None) -> dict[str, Any]:
-    """Read params.yaml, apply ``overrides`` (e.g. {"scale": "smoke"}), validate and resolve."""
+def load_params(path: str | Path = DEFAULT_PARAMS, overrides: dict | None = None,
+                checks: Iterable[Check] = ()) -> dict[str, Any]:
+    """Read params.yaml, apply ``overrides`` (e.g. {"scale": "smoke"}), validate, resolve and run
+    ``checks`` (see `resolve`)."""
     path = Path(path)
     try:
         raw = yaml.safe_load(path.read_text())
@@ -242,7 +206,7 @@ def load_params(path: str | Path = DEFAULT_PARAMS, overrides: dict | None = None
         raise ConfigError(f"{path}: not valid YAML{where}: {problem}") from None
     if overrides:
         raw = deep_merge(raw or {}, overrides)
-    return resolve(raw, str(path), overrides)
+    return resolve(raw, str(path), overrides, checks)
 
 
 class DeclaredParams(dict):

@@ -3,8 +3,12 @@
 A stage is a command of the command line, declared once with `@command("name", ...)` on its function
 in a study's module `tactilepipe.cli.<study>` (cli/registry.py).
 Its code is:
-- the entry files (`__main__`, `cli/main.py`), without what they import for the other studies;
-- the stage's module and everything its module level imports;
+- the entry files (`__main__`, `cli/main.py`) and what cli/main.py imports for every stage (the
+  registry, `stage_params`), without the other studies' modules it imports;
+- the stage's module, and of what its module level imports, what the stage uses: a ``from m
+  import x`` counts when the stage function, the module-level helpers it calls, the constants
+  they name or its own ``@command(...)`` declaration (argument choices, ``checks=``) read x
+  (an import that names nothing to attribute, ``import m``, counts always);
 - every module the stage function imports (stages import lazily, inside the function), and
   those imported by the module-level helpers of its module that the function calls;
 - the transitive closure of those modules within `tactilepipe`, counting every import in a
@@ -160,20 +164,6 @@ def _declared_keys(stage: str, keyword: str) -> tuple[str, ...]:
     return ()
 
 
-def _called_helpers(func: ast.FunctionDef, functions: dict[str, ast.FunctionDef]) -> list[ast.FunctionDef]:
-    """``func`` and the module-level functions of its module it calls, directly or through each other."""
-    out, todo, seen = [], [func], set()
-    while todo:
-        f = todo.pop()
-        if f.name in seen:
-            continue
-        seen.add(f.name)
-        out.append(f)
-        todo.extend(functions[n.id] for n in ast.walk(f)
-                    if isinstance(n, ast.Name) and n.id in functions and n.id != f.name)
-    return out
-
-
 def _home(stage: str) -> tuple[str, str]:
     """(module, function) of the declared stage ``stage``."""
     homes = _declared_stages()
@@ -205,19 +195,73 @@ def _stored_closures() -> dict[str, list[str]]:
 
 def _stage_closure(stage: str) -> frozenset[str]:
     home, func = _home(stage)
-    functions = _functions(home)
     tree = _tree(module_path(home))
-    top = ast.Module(body=[n for n in tree.body if isinstance(n, (ast.Import, ast.ImportFrom))], type_ignores=[])
     # the stage's module runs its module level and the stage's functions, not its other stages
-    roots = _imports_in(top, home, False)
-    for f in _called_helpers(functions[func], functions):
-        roots |= _imports_in(f, home, False)
+    used, names = _used_definitions(tree, _functions(home)[func])
+    roots = _module_level_imports(tree, home, names)
+    for node in used:
+        roots |= _imports_in(node, home, False)
     # rules run `python -m tactilepipe`, which enters through __main__ and the parser of every
-    # study (cli.main): those files count, but not what they import for other studies
+    # study (cli.main): those files count, and what cli.main imports for every stage (the shared
+    # helpers: stage_params, the registry), but not the other studies' modules it imports
     closure: set[str] = _with_parents(home) | {f"{PACKAGE}.__main__", ENTRY}
-    for m in roots:
+    studies = {m for m, _ in _declared_stages().values()}
+    for m in roots | (module_imports(ENTRY) - studies):
         closure |= module_closure(m)
     return frozenset(closure)
+
+
+_DEFINITIONS = (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)
+
+
+def _used_definitions(tree: ast.Module, func: ast.FunctionDef) -> tuple[list[ast.AST], set[str]]:
+    """The module-level definitions the stage function ``func`` uses (itself with its ``@command``
+    declaration, the helpers it calls, the constants it or its declaration names, e.g. an argument
+    with ``choices``, its ``checks``), transitively; and every name they read."""
+    defined: dict[str, list[ast.AST]] = {}
+    for node in tree.body:
+        if isinstance(node, _DEFINITIONS):
+            defined.setdefault(node.name, []).append(node)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign, ast.AugAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            for target in targets:
+                for n in ast.walk(target):
+                    if isinstance(n, ast.Name):
+                        defined.setdefault(n.id, []).append(node)
+    used, names, seen, todo = [], set(), set(), [func]
+    while todo:
+        node = todo.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        used.append(node)
+        for n in ast.walk(node):
+            if isinstance(n, ast.Name) and n.id not in names:
+                names.add(n.id)
+                todo.extend(defined.get(n.id, ()))
+    return used, names
+
+
+def _module_level_imports(tree: ast.Module, module: str, names: set[str]) -> set[str]:
+    """The modules imported at the top of the stage's module that the stage uses: a ``from m
+    import x`` counts if the stage reads the name x (or its alias), an ``import m as y`` if it
+    reads y. What cannot be attributed by name counts always (``import m``, ``from m import *``,
+    an import inside a module-level if or try)."""
+    found: set[str] = set()
+    for node in tree.body:
+        if isinstance(node, _DEFINITIONS) or isinstance(node, (ast.Assign, ast.AnnAssign, ast.AugAssign)):
+            continue
+        if isinstance(node, ast.ImportFrom) and all(a.name != "*" for a in node.names):
+            kept = [a for a in node.names if (a.asname or a.name) in names]
+            if kept:
+                found |= _imports_in(ast.ImportFrom(module=node.module, names=kept, level=node.level), module, False)
+        elif isinstance(node, ast.Import):
+            kept = [a for a in node.names if a.asname is None or a.asname in names]
+            if kept:
+                found |= _imports_in(ast.Import(names=kept), module, False)
+        else:
+            found |= _imports_in(node, module, False)
+    return found
 
 
 def stage_files(stage: str, root: Path | None = None) -> list[str]:

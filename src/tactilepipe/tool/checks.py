@@ -1,0 +1,45 @@
+"""The tool study's cross-key parameter checks: the model's input size against the stored frames,
+the variants the runs can name and the network can build, the split's fractions.
+
+Here, not in core/config.py, so that editing them re-runs the tool stages only (the code a stage
+runs is an input of its rule: pipeline/codedeps.py). A tool stage run by hand runs them (its
+``@command`` ``checks=``); the workflow runs every study's (pipeline/studies.py)."""
+
+from __future__ import annotations
+
+import re
+
+from tactilepipe.core.errors import ConfigError
+
+
+def check(p: dict, source: str) -> None:
+    """Raise ConfigError naming ``source`` and the keys when resolved parameters ``p`` disagree."""
+    stored = p["tool_ingest"]["stored_size"]
+    for where, size in [("tool_train.image_size", p["tool_train"]["image_size"])] + \
+            [(f"tool_train.sweep[{i}].image_size", s["image_size"]) for i, s in enumerate(p["tool_train"]["sweep"])]:
+        if size > stored:
+            raise ConfigError(f"{source}: {where}={size} is larger than tool_ingest.stored_size={stored}: the model "
+                              f"would train on upsampled frames (store them larger, or train smaller)")
+    _check_variants(p["tool_variants"], p["tool_train"]["variants"], source)
+    if abs(sum(p["tool_split"]["fractions"]) - 1.0) > 1e-6:
+        raise ConfigError(f"{source}: tool_split.fractions must sum to 1 (got {p['tool_split']['fractions']})")
+
+
+def _check_variants(variants: dict, chosen, source: str) -> None:
+    """``tool_variants`` defines 'full', names no other run, slices real channels; ``chosen``
+    (tool_train.variants, a list or "all") names defined variants only."""
+    if "full" not in variants:
+        raise ConfigError(f"{source}: tool_variants must define 'full', the published model (the leave-one-tool-out, "
+                          f"sweep and study-000 runs train it)")
+    for name, v in variants.items():
+        if name.startswith("full_") or re.search(r"_r[0-9]+$", name):
+            raise ConfigError(f"{source}: tool_variants.{name}: the name reads as another run (<variant>_r<k> is a "
+                              f"variant's repeat k, full_<...> one of the full model's other runs): choose another")
+        for a, b in v["sensors"]:
+            if a >= b:
+                raise ConfigError(f"{source}: tool_variants.{name}.sensors: [{a}, {b}] is no channel slice (start must "
+                                  f"be below stop, within the 4 input channels)")
+    unknown = [v for v in chosen if v not in variants] if chosen != "all" else []
+    if unknown:
+        raise ConfigError(f"{source}: tool_train.variants: unknown variant(s) {unknown} (tool_variants defines "
+                          f"{', '.join(variants)}; or 'all')")
