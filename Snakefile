@@ -13,6 +13,7 @@ include: "workflow/rules/drift.smk"
 include: "workflow/rules/tool.smk"
 include: "workflow/rules/regimes.smk"
 include: "workflow/rules/study000.smk"
+include: "workflow/rules/stages.smk"
 
 
 rule all:

@@ -412,11 +412,11 @@ TOOL_DATA_ON = {"tool_ingest", "tool_clock_figure", "tool_dataset", "tool_split"
                 "tool_model_report"}
 EDITS = [   # (module, snakemake rules planned, DVC stages out of date, an output the edit must rewrite)
     ("volume/report.py", {"volume_report"}, {"volume"}, f"{SMOKE}/volume/metrics.json"),
-    # a study's CLI module is in its own stages' code only: a drift stage edit re-runs nothing else
-    ("cli/drift.py", {"drift_report"}, {"drift_simulate", "drift"}, f"{SMOKE}/drift/fits.csv"),
-    # planned only (None: no repro, which the cases above show for both kinds of module; these
-    # would re-run what they did or whole scenes)
-    ("drift/analyse.py", {"drift_report"}, {"drift"}, None),
+    ("drift/analyse.py", {"drift_report"}, {"drift"}, f"{SMOKE}/drift/fits.csv"),
+    # planned only (None: no repro, which the cases above show; these would re-run what they did,
+    # a simulator or whole scenes). A study's CLI module is in its own stages' code only: a drift
+    # stage edit re-runs nothing else (its DVC simulator stage re-simulates the drift session)
+    ("cli/drift.py", {"drift_report"}, {"drift_simulate", "drift"}, None),
     ("tool/model/network.py", {"tool_train", "tool_model_report"}, {"tool_models"}, None),
     ("tool/data/ingest.py", TOOL_DATA_ON, {"tool_data", "tool_models"}, None),
     # the drift simulator shares the pillar physics (papillarray/physics.py), not the lift simulator

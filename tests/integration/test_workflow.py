@@ -375,3 +375,71 @@ def test_a_simulator_key_re_runs_only_the_scenes_that_simulate_with_it(smoke_bui
     assert {"volume_simulate", "drift_simulate", "drift_report", "volume_report"} <= sensor, sensor
     assert not any(rule.startswith("tool_") for rule in sensor), sensor
     assert "Nothing to be done" in snakemake(wd, "-n", "--config", "scale=smoke").stdout   # the dry runs wrote no stamp
+
+
+def _edit_copy(path: Path, text: str) -> None:
+    """Append ``text`` to a file of a linked copy, as a file of its own (the build keeps its own)."""
+    old = path.read_text()
+    path.unlink()
+    path.write_text(old + text)
+
+
+def test_an_edit_in_one_studys_code_plans_no_job_of_the_other(smoke_build: Path, tmp_path: Path):
+    """A stage's code is what its function runs: an edit inside the volume study's code plans
+    volume jobs only, one inside the tool study's code tool jobs only."""
+    planned = {}
+    for study, path in [("volume", "volume/mlp.py"), ("tool", "tool/model/network.py")]:
+        wd = linked_copy(smoke_build, tmp_path / study)       # dry runs only
+        _edit_copy(wd / "src/tactilepipe" / path, "# edited\n")
+        planned[study] = {rule for rule, _w in _planned_jobs(snakemake(wd, "-n", "--config", "scale=smoke"))}
+    assert planned["volume"] and all(rule.startswith("volume_") for rule in planned["volume"]), planned
+    assert planned["tool"] and all(rule.startswith("tool_") for rule in planned["tool"]), planned
+
+
+NEW_STAGE = '''"""A count of the volume data set's lifts."""
+
+from tactilepipe.cli.registry import arg, command
+from tactilepipe.cli.volume import VOLUME_CHECKS
+
+
+@command("volume-summary", "lifts and volumes of the dataset, counted",
+         checks=VOLUME_CHECKS, params=("seed",),
+         args=(arg("--dataset", required=True), arg("--out", required=True)),
+         rule={"scene": "volume", "inputs": {"dataset": "volume/dataset.parquet"},
+               "outputs": {"out": "volume/summary.json"}})
+def cmd_volume_summary(args, p) -> None:
+    import pandas as pd
+    from tactilepipe.core.atomic import write_json
+    data = pd.read_parquet(args.dataset)
+    write_json(args.out, {"lifts": len(data), "volumes_ml": sorted(set(data["volume_ml"].tolist()))})
+'''
+
+
+def test_a_new_stage_is_its_declaration_and_builds_through_snakemake_and_dvc(smoke_build: Path, tmp_path: Path):
+    """A stage that declares its rule needs no rule file, target list, command list or DVC stage
+    written for it: its module added, Snakemake plans exactly its job (no other stage's code
+    changed), its output joins its scene's targets, the regenerated dvc.yaml holds it in the
+    scene's stage, and `dvc repro` builds it."""
+    wd = shutil.copytree(smoke_build, tmp_path / "wd", symlinks=True)
+    params = wd / "params.yaml"
+    params.write_text(re.sub(r"^scale: \w+", "scale: smoke", params.read_text(), count=1, flags=re.M))
+    (wd / "src/tactilepipe/cli/volume_summary.py").write_text(NEW_STAGE)      # the stage's one file of code
+    planned = _planned_jobs(snakemake(wd, "-n"))
+    assert planned == {("volume_summary", "")}, planned
+    snakemake(wd)
+    summary = json.loads((results(wd) / "volume/summary.json").read_text())
+    assert summary["lifts"] > 0 and 0.0 in summary["volumes_ml"]
+    assert (results(wd) / "logs/volume/volume_summary.log").exists()
+    run([str(BIN / "python"), "workflow/scripts/dvc_yaml.py"], wd)
+    stage = yaml.safe_load((wd / "dvc.yaml").read_text())["stages"]["volume"]
+    assert "results/${scale}/volume/summary.json" in json.dumps(stage["outs"]), stage["outs"]
+    assert "src/tactilepipe/cli/volume_summary.py" in stage["deps"] and "seed" in stage["params"]
+    run(["git", "init", "-q"], wd)
+    run([str(BIN / "dvc"), "init", "-q"], wd)
+    (results(wd) / "volume/summary.json").unlink()
+    out = run([str(BIN / "dvc"), "repro", "volume"], wd)
+    assert "Running stage 'volume'" in out.stdout + out.stderr
+    assert json.loads((results(wd) / "volume/summary.json").read_text()) == summary
+    assert "volume_summary" in out.stdout + out.stderr                     # Snakemake inside ran exactly it
+    status = json.loads(run([str(BIN / "dvc"), "status", "--json", "volume"], wd).stdout or "{}")
+    assert status == {}, status

@@ -19,6 +19,9 @@ QEMU_CPUS = ("Haswell-v4", "EPYC-Rome")
 # Each emulated run costs minutes of CPU: the suite (`make test`, CI) emulates Intel Haswell only;
 # TACTILEPIPE_QEMU_CPUS=all adds AMD EPYC-Rome (`make test-all` sets it)
 SUITE_CPUS = QEMU_CPUS if os.environ.get("TACTILEPIPE_QEMU_CPUS") == "all" else QEMU_CPUS[:1]
+# The op-by-op probe runs the widths the portable path trains at: the default scale's 32 in the
+# suite, and the paper's 64 too with TACTILEPIPE_QEMU_CPUS=all (each width is minutes under QEMU)
+SUITE_WIDTHS = "32,64" if os.environ.get("TACTILEPIPE_QEMU_CPUS") == "all" else "32"
 
 
 def require_qemu() -> str:

@@ -103,8 +103,12 @@ def _known_names() -> dict[str, set[str]]:
     import tactilepipe.cli.main  # noqa: F401  (declares every command)
     from tactilepipe.cli.registry import COMMANDS
     makefile = (REPO / "Makefile").read_text()
+    from tactilepipe.pipeline.scenes import SCENES
+    from tactilepipe.pipeline.stage_rules import stage_rules
     rules = {m for f in [REPO / "Snakefile", *(REPO / "workflow/rules").glob("*.smk")]
              for m in re.findall(r"^rule (\w+):", f.read_text(), re.M)}
+    # and the rules workflow/rules/stages.smk makes: a target per scene, a rule per declaring stage
+    rules |= set(SCENES) | {r.name for r in stage_rules()}
     return {"command": set(COMMANDS), "make target": set(re.findall(r"^([\w.-]+):", makefile, re.M)),
             "rule": rules}
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import yaml
 
-from tactilepipe.pipeline import codedeps, layout, scenes, studies
+from tactilepipe.pipeline import codedeps, layout, scenes, stage_rules, studies
 from tactilepipe.pipeline.sessions import SessionSheet
 from tactilepipe.pipeline.stamp_keeper import StampKeeper
 from tactilepipe.core.config import changed_leaves, resolve, typed_like
@@ -156,7 +156,8 @@ def session_files(study):
 def scene_targets(names, data_only=False):
     """Every file the scenes end in (a tool scene's data stages only, with ``data_only``)."""
     try:
-        return scenes.scene_targets(names, RESULTS, P, SHEET, data_only)
+        return scenes.scene_targets(names, RESULTS, P, SHEET, data_only) + \
+            ([] if data_only else stage_rules.declared_outputs(names, RESULTS))
     except TactilepipeError as exc:
         raise WorkflowError(str(exc)) from None
 

@@ -19,26 +19,6 @@ rule volume_dataset:
         "--qc {output.qc:q} 2> {log:q}"
 
 
-# a second's work on the dataset table: on a cluster it runs where Snakemake runs (as tool_split)
-localrules:
-    volume_split,
-
-
-rule volume_split:
-    input:
-        data=f"{VOLUME}/dataset.parquet",
-        code=stage_code("volume-split"),
-        params=param_stamp("volume-split"),
-    output:
-        f"{VOLUME}/folds.json",
-    resources:
-        **rule_resources("volume_split"),
-    log:
-        f"{LOGS}/volume/split.log",
-    shell:
-        "{CLI} volume-split --stamp {input.params:q} --dataset {input.data:q} --out {output:q} 2> {log:q}"
-
-
 rule volume_train:
     input:
         data=f"{VOLUME}/dataset.parquet",
@@ -57,22 +37,6 @@ rule volume_train:
     shell:
         "{CLI} volume-train --stamp {input.params:q} --modality {wildcards.modality:q} --dataset {input.data:q} "
         "--folds {input.folds:q} --out-dir {params.out_dir:q} 2> {log:q}"
-
-
-rule volume_gridsearch:
-    input:
-        data=f"{VOLUME}/dataset.parquet",
-        folds=f"{VOLUME}/folds.json",
-        code=stage_code("volume-gridsearch"),
-        params=param_stamp("volume-gridsearch"),
-    output:
-        f"{VOLUME}/mlp/grid.csv",
-    resources:
-        **rule_resources("volume_gridsearch"),
-    log:
-        f"{LOGS}/volume/gridsearch.log",
-    shell:
-        "{CLI} volume-gridsearch --stamp {input.params:q} --dataset {input.data:q} --folds {input.folds:q} --out {output:q} 2> {log:q}"
 
 
 rule volume_baseline:
@@ -108,7 +72,7 @@ rule volume_report:
         params=param_stamp("volume-report"),
         provenance=lambda w: provenance_inputs("volume"),
     output:
-        reported(scene_targets(["volume"]), "volume"),
+        reported(scenes.report_outputs("volume", RESULTS), "volume"),
     params:
         provenance=provenance_args("volume"),
     resources:

@@ -34,11 +34,11 @@ from tactilepipe.core.atomic import write_text
 STAGES = [  # (name, Snakemake targets); "{scale}" is written as DVC's ${scale}, "{results}" is the build's folder
     ("volume_simulate", ["raw/volume/sim-{scale}/lifts.csv"]),
     ("drift_simulate", ["raw/drift/sim-{scale}/session.json"]),
-    ("volume", ["volume_report"]),
-    ("drift", ["drift_report"]),
+    ("volume", ["volume"]),                 # a scene's rule: every file it ends in (pipeline/scenes.py)
+    ("drift", ["drift"]),
     ("tool_simulate", ["raw/tool/sim-{scale}/nano17.cal"]),
     ("tool_data", ["tool_data"]),
-    ("tool_models", ["{results}/tool_normal/metrics.json", "{results}/tool_shear/metrics.json"]),
+    ("tool_models", ["tool_normal", "tool_shear"]),
 ]
 # a parameter stamp: a stage's (common.smk param_stamp) or a training run's (params/tool-train/<run>.json),
 # or a dry run's scratch copy of a changed one (changed-params/...)
@@ -165,7 +165,9 @@ def generate(params: dict) -> str:
                                  f"{sorted(s['stage'] for s in stamps)}")
             for stamp in stamps:
                 keys.update(stamp["declared"] + stamp["graph"])
-            for f in map(str, j.input):
+            # a target rule (a scene's, `all`) writes nothing: what it gathers is its stages' outs, or
+            # another stage's, and no dependency of this one
+            for f in map(str, j.input if j.output else ()):
                 if STAMP.match(f):
                     continue                      # DVC reads the same values from params.yaml
                 if f.startswith(CONTENT_STAMPS + "/") or "/changed-content/" in f:

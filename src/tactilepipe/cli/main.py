@@ -3,13 +3,30 @@
 from __future__ import annotations
 
 import argparse
+import importlib
+import pkgutil
 import sys
 
-# importing a study's module declares its commands, in this order in --help
-from tactilepipe.cli import volume, drift, tool, study000, rig, compare, sessions  # noqa: F401
+import tactilepipe.cli
 from tactilepipe.cli.common import stage_params
 from tactilepipe.cli.registry import add_commands
 from tactilepipe.core.errors import TactilepipeError
+
+
+# Importing a study's module declares its commands. Every module of this package but the shared
+# ones is a study's, found rather than listed, so that a new stage's module is the only file it
+# adds (pipeline/codedeps.py finds them the same way); --help lists these first, in this order.
+SHARED = {"main", "common", "registry", "provenance"}
+FIRST = ("volume", "drift", "tool", "study000", "rig", "compare", "sessions")
+
+
+def _declare_commands() -> None:
+    found = {m.name for m in pkgutil.iter_modules(tactilepipe.cli.__path__)} - SHARED
+    for name in [m for m in FIRST if m in found] + sorted(found - set(FIRST)):
+        importlib.import_module(f"tactilepipe.cli.{name}")
+
+
+_declare_commands()
 
 
 def build_parser() -> argparse.ArgumentParser:

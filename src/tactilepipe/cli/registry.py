@@ -19,6 +19,14 @@ From that one declaration:
   them as the DVC stage's params, and takes the function's imports, and those of the names the
   function and its declaration use (``checks``, argument choices), as the stage's code.
 ``params`` and ``graph`` must be tuples of string literals, so that they can be read that way.
+
+A stage with one fixed file per input and output declares its workflow rule too, as a literal::
+
+    rule={"scene": "volume", "inputs": {"dataset": "volume/dataset.parquet"},
+          "outputs": {"out": "volume/folds.json"}}
+
+(paths under the build's folder, each key one of its ``--<key>`` arguments): the workflow then
+generates its Snakemake rule, its outputs join the scene's targets and so its DVC stage.
 """
 
 from __future__ import annotations
@@ -51,6 +59,7 @@ class Command:
     args: tuple[Arg, ...]
     provenance: bool               # takes --provenance-stages / --sessions (a scene's report)
     parser_options: dict           # more of add_parser's keywords (description, formatter_class)
+    rule: dict | None = None       # the workflow's rule, generated (pipeline/stage_rules.py)
 
 
 COMMANDS: dict[str, Command] = {}
@@ -58,7 +67,7 @@ COMMANDS: dict[str, Command] = {}
 
 def command(name: str, help: str, *, params: tuple[str, ...] = (), graph: tuple[str, ...] = (),
             checks: tuple[Callable, ...] = (), args: tuple[Arg, ...] = (), provenance: bool = False,
-            **parser_options):
+            rule: dict | None = None, **parser_options):
     """Declare the decorated function ``f(args, p)`` as the command ``name``."""
     def register(func: Callable) -> Callable:
         if name in COMMANDS:
@@ -69,7 +78,7 @@ def command(name: str, help: str, *, params: tuple[str, ...] = (), graph: tuple[
                                    f"name its study's (e.g. VOLUME_CHECKS), so that run by hand it refuses what the "
                                    f"workflow refuses")
         COMMANDS[name] = Command(name, func, help, tuple(params), tuple(graph), tuple(checks), tuple(args),
-                                 provenance, parser_options)
+                                 provenance, parser_options, rule)
         return func
     return register
 

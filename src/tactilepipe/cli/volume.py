@@ -73,7 +73,10 @@ def cmd_volume_dataset(args, p) -> None:
 @command("volume-split", "seeded train/test lift draws stratified by volume",
          checks=VOLUME_CHECKS,
          params=("seed", "folds"),
-         args=(arg("--dataset", required=True), arg("--out", required=True)))
+         args=(arg("--dataset", required=True), arg("--out", required=True)),
+         # a second's work on the dataset table: on a cluster it runs where Snakemake runs
+         rule={"scene": "volume", "inputs": {"dataset": "volume/dataset.parquet"},
+               "outputs": {"out": "volume/folds.json"}, "local": True})
 def cmd_volume_split(args, p) -> None:
     import pandas as pd
     from tactilepipe.core.atomic import write_json
@@ -110,7 +113,9 @@ def cmd_volume_train(args, p) -> None:
 @command("volume-gridsearch", "MLP grid search on the first fold",
          checks=VOLUME_CHECKS,
          params=("seed", "volume_sensor", "mlp"),
-         args=FOLDED + (arg("--out", required=True),))
+         args=FOLDED + (arg("--out", required=True),),
+         rule={"scene": "volume", "inputs": {"dataset": "volume/dataset.parquet", "folds": "volume/folds.json"},
+               "outputs": {"out": "volume/mlp/grid.csv"}})
 def cmd_volume_gridsearch(args, p) -> None:
     import pandas as pd
     from tactilepipe.core.atomic import write_text

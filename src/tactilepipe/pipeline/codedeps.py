@@ -287,3 +287,46 @@ def stage_fingerprint(stage: str) -> str:
     for m in sorted(stage_modules(stage)):
         h.update(m.encode() + b"\0" + module_path(m).read_bytes() + b"\0")
     return h.hexdigest()
+
+
+def declared_stage_names() -> list[str]:
+    """Every stage the CLI modules declare."""
+    return sorted(_declared_stages())
+
+
+def _declared_literal(stage: str, keyword: str):
+    """The literal value of ``keyword=`` in the stage's declaration, or None when it has none."""
+    module, name = _home(stage)
+    for kw in _declaration(_functions(module)[name]).keywords:
+        if kw.arg == keyword:
+            try:
+                return ast.literal_eval(kw.value)
+            except ValueError:
+                raise TactilepipeError(f"{module}.{name}: the {keyword}= of its declaration must be a literal "
+                                       f"(strings, dicts, booleans), so the workflow can read it unimported") from None
+    return None
+
+
+def stage_rule(stage: str) -> dict | None:
+    """The workflow rule the stage declares (``rule=``), or None: its rule is written by hand."""
+    return _declared_literal(stage, "rule")
+
+
+def stage_flags(stage: str) -> set[str]:
+    """The option flags (``--name``) of the stage's declared arguments that are written literally."""
+    module, name = _home(stage)
+    call = _declaration(_functions(module)[name])
+    found = set()
+    for node in ast.walk(call):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "arg":
+            found.update(a.value for a in node.args if isinstance(a, ast.Constant) and isinstance(a.value, str)
+                         and a.value.startswith("--"))
+    # arguments shared through a module-level tuple (e.g. FOLDED) are found where that tuple is made
+    names = {n.id for n in ast.walk(call) if isinstance(n, ast.Name)}
+    for node in _tree(module_path(module)).body:
+        if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id in names for t in node.targets):
+            for sub in ast.walk(node.value):
+                if isinstance(sub, ast.Call) and isinstance(sub.func, ast.Name) and sub.func.id == "arg":
+                    found.update(a.value for a in sub.args if isinstance(a, ast.Constant)
+                                 and isinstance(a.value, str) and a.value.startswith("--"))
+    return found

@@ -84,15 +84,21 @@ def tool_model_targets(name: str, results: str, p: dict) -> list[str]:
 
 
 def scene_targets(names, results: str, p: dict, sheet: SessionSheet, data_only: bool = False) -> list[str]:
-    """Every file the scenes ``names`` end in (``data_only``: a tool scene's data stages' only)."""
+    """Every file the scenes' hand-written rules end in (``data_only``: a tool scene's data stages'
+    only); the stages that declare their rules add theirs (stage_rules.declared_outputs)."""
     out = []
     for name in names:
         study = scene(name).study
         if study == "tool":
             out += tool_data_targets(name, results, p, sheet) + ([] if data_only else tool_model_targets(name, results, p))
         else:
-            out += [f"{results}/{name}/{f}" for f in (VOLUME_OUTPUTS if study == "volume" else DRIFT_OUTPUTS)]
+            out += report_outputs(name, results)
     return out
+
+
+def report_outputs(name: str, results: str) -> list[str]:
+    """What the report stage of the volume or drift scene writes."""
+    return [f"{results}/{name}/{f}" for f in {"volume": VOLUME_OUTPUTS, "drift": DRIFT_OUTPUTS}[name]]
 
 
 def report_items(files, scene_name: str, p: dict) -> list[tuple[str, str | None, str | None]]:

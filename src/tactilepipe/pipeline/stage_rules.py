@@ -1,0 +1,99 @@
+"""Workflow rules generated from the stages' declarations.
+
+A stage whose inputs and outputs are fixed files of a build declares its rule with its command
+(``rule=`` of ``@command``, cli/registry.py): the scene it belongs to, its inputs and its outputs,
+each a path under the build's folder keyed by the stage's own ``--<key>`` argument. From that the
+workflow (workflow/rules/stages.smk) makes its Snakemake rule: inputs, outputs, code and parameter
+stamp, log and shell line; its outputs join the scene's targets (pipeline/scenes.py), so its
+scene's DVC stage and `tactilepipe diff` take it in too. Adding such a stage is its function with
+its declaration, its test and its docs; `make dvc.yaml` regenerates the DVC stages.
+
+Stages whose jobs come from sessions or runs (one per recording, per trained model) keep their
+rules in workflow/rules/, written by hand.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.pipeline import codedeps
+from tactilepipe.pipeline.scenes import SCENES
+
+KEYS = {"scene", "inputs", "outputs", "local"}
+FLAG = re.compile(r"[a-z][a-z0-9-]*")
+
+
+@dataclass(frozen=True)
+class StageRule:
+    stage: str                          # the command, e.g. "volume-split"
+    scene: str
+    inputs: tuple[tuple[str, str], ...]     # (argument, path under the build's folder)
+    outputs: tuple[tuple[str, str], ...]
+    local: bool                         # runs where Snakemake runs (a second's work), never queued
+
+    @property
+    def name(self) -> str:
+        """The rule's name: the stage's, with underscores (volume-split -> volume_split)."""
+        return self.stage.replace("-", "_")
+
+    def file_args(self, root: str) -> str:
+        """Each input and output as its ``--<key> <path>``, quoted for the shell."""
+        import shlex
+        return " ".join(f"--{k} {shlex.quote(f'{root}/{p}')}" for k, p in self.inputs + self.outputs)
+
+    def named_inputs(self, root: str) -> dict[str, str]:
+        return {_key(k): f"{root}/{p}" for k, p in self.inputs}
+
+    def named_outputs(self, root: str) -> dict[str, str]:
+        return {_key(k): f"{root}/{p}" for k, p in self.outputs}
+
+
+def _key(flag: str) -> str:
+    return flag.replace("-", "_")
+
+
+def stage_rules(scenes=None) -> list[StageRule]:
+    """Every declared stage rule (of the scenes ``scenes``, default all), checked."""
+    out = []
+    for stage in codedeps.declared_stage_names():
+        decl = codedeps.stage_rule(stage)
+        if decl is None:
+            continue
+        rule = _checked(stage, decl)
+        if scenes is None or rule.scene in scenes:
+            out.append(rule)
+    return out
+
+
+def declared_outputs(scenes, root: str) -> list[str]:
+    """What the declaring stages of the scenes ``scenes`` write: targets of those scenes."""
+    return [f"{root}/{path}" for rule in stage_rules(scenes) for _, path in rule.outputs]
+
+
+def _checked(stage: str, decl) -> StageRule:
+    where = f"stage {stage}: its rule= declaration"
+    if not isinstance(decl, dict) or not {"scene", "inputs", "outputs"} <= set(decl) or set(decl) - KEYS:
+        raise TactilepipeError(f"{where} must be a dict of scene, inputs, outputs (and local), got {decl!r}")
+    if decl["scene"] not in SCENES:
+        raise TactilepipeError(f"{where}: scene '{decl['scene']}' is none of {', '.join(SCENES)}")
+    if not decl["outputs"]:
+        raise TactilepipeError(f"{where}: a rule needs at least one output")
+    flags = codedeps.stage_flags(stage)
+    files = {}
+    for part in ("inputs", "outputs"):
+        if not isinstance(decl[part], dict):
+            raise TactilepipeError(f"{where}: {part} must map an argument to a path")
+        for key, path in decl[part].items():
+            if not (isinstance(key, str) and FLAG.fullmatch(key)) or f"--{key}" not in flags:
+                raise TactilepipeError(f"{where}: {part} key '{key}' is not one of the stage's arguments "
+                                       f"({', '.join(sorted(flags))})")
+            if key in ("stamp", "params") or key in files:
+                raise TactilepipeError(f"{where}: argument '--{key}' is given twice or is the stage's stamp")
+            if not isinstance(path, str) or not path or path.startswith(("/", "..")) or "{" in path:
+                raise TactilepipeError(f"{where}: {part}.{key}: '{path}' must be a fixed path under the build's "
+                                       f"folder (results/<build>/), e.g. volume/summary.json")
+            files[key] = path
+    return StageRule(stage, decl["scene"], tuple(decl["inputs"].items()), tuple(decl["outputs"].items()),
+                     bool(decl.get("local", False)))

@@ -1,0 +1,47 @@
+"""Rules generated from the stages' declarations (pipeline/stage_rules.py)."""
+
+from __future__ import annotations
+
+import pytest
+
+from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.pipeline import stage_rules
+from tactilepipe.pipeline.scenes import scene_targets
+from tactilepipe.pipeline.sessions import SessionSheet
+
+
+def test_the_declared_rules_are_read_from_the_source():
+    rules = {r.stage: r for r in stage_rules.stage_rules()}
+    split = rules["volume-split"]
+    assert (split.name, split.scene, split.local) == ("volume_split", "volume", True)
+    assert split.inputs == (("dataset", "volume/dataset.parquet"),)
+    assert split.file_args("results/my build") == ("--dataset 'results/my build/volume/dataset.parquet' "
+                                                   "--out 'results/my build/volume/folds.json'")
+    assert split.named_outputs("results/smoke") == {"out": "results/smoke/volume/folds.json"}
+    assert rules["volume-gridsearch"].local is False
+    assert [r.stage for r in stage_rules.stage_rules(["drift"])] == []
+
+
+def test_a_declared_output_is_a_target_of_its_scene(smoke_params):
+    declared = stage_rules.declared_outputs(["volume"], "results/smoke")
+    assert set(declared) == {"results/smoke/volume/folds.json", "results/smoke/volume/mlp/grid.csv"}
+    assert stage_rules.declared_outputs(["drift", "tool_normal"], "results/smoke") == []
+    # the report's outputs are the hand-written rules' targets, which the declared ones join
+    hand = scene_targets(["volume"], "results/smoke", smoke_params, SessionSheet(smoke_params))
+    assert "results/smoke/volume/metrics.json" in hand and not set(declared) & set(hand)
+
+
+@pytest.mark.parametrize("decl, problem", [
+    ({"scene": "volume", "inputs": {"table": "volume/dataset.parquet"}, "outputs": {"out": "volume/f.json"}},
+     "inputs key 'table' is not one of the stage's arguments"),
+    ({"scene": "volume", "inputs": {"dataset": "/tmp/dataset.parquet"}, "outputs": {"out": "volume/f.json"}},
+     "must be a fixed path under the build's folder"),
+    ({"scene": "volume", "inputs": {"dataset": "volume/{x}.parquet"}, "outputs": {"out": "volume/f.json"}},
+     "must be a fixed path"),
+    ({"scene": "lab", "inputs": {}, "outputs": {"out": "volume/f.json"}}, "scene 'lab' is none of"),
+    ({"scene": "volume", "inputs": {}, "outputs": {}}, "at least one output"),
+    ({"scene": "volume", "inputs": {}, "outputs": {"out": "f.json"}, "threads": 2}, "must be a dict of scene"),
+])
+def test_a_wrong_declaration_is_named_with_its_stage(decl, problem):
+    with pytest.raises(TactilepipeError, match=f"stage volume-split: its rule= declaration.*{problem}"):
+        stage_rules._checked("volume-split", decl)

@@ -1,0 +1,34 @@
+# Rules generated from the stages that declare theirs (`rule=` of @command; pipeline/stage_rules.py):
+# fixed input and output files under the build's folder, each passed as the stage's --<key>.
+
+
+for _stage in stage_rules.stage_rules():
+    rule:
+        name: _stage.name
+        input:
+            **_stage.named_inputs(RESULTS),
+            code=stage_code(_stage.stage),
+            params=param_stamp(_stage.stage),
+        output:
+            **_stage.named_outputs(RESULTS),
+        localrule: _stage.local
+        resources:
+            **rule_resources(_stage.name),
+        log:
+            f"{LOGS}/{_stage.scene}/{_stage.name}.log",
+        params:
+            # a shell line is formatted when its job runs, when the loop's variable is long gone:
+            # what it needs of this stage is captured here, as values
+            command=f"{CLI} {_stage.stage}",
+            files=_stage.file_args(RESULTS),
+        shell:
+            "{params.command} --stamp {input.params:q} {params.files} 2> {log:q}"
+
+
+# A target per scene (`snakemake --cores 2 volume`): every file the scene ends in.
+for _scene in scenes.SCENES:
+    rule:
+        name: _scene
+        localrule: True
+        input:
+            scene_targets([_scene]),
