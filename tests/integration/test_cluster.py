@@ -22,6 +22,7 @@ from tactilepipe.core.config import load_params
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.core.parameters.resources import RuleResources
 from tactilepipe.pipeline.estimate import estimate_report, forward_flops, planned_pairs, training_flops
+from tactilepipe.pipeline.stage_rules import stage_rules
 
 from support.project import BIN, REPO, SMOKE, copy_project, results, run
 
@@ -44,6 +45,9 @@ def test_every_rule_that_runs_something_declares_its_resources():
     assert runs >= {"tool_train", "tool_simulate", "volume_train", "papillarray_ingest"}
     for name in runs:
         assert f'**rule_resources("{name}")' in blocks[name], name
+    # the rules generated from the stages' declarations ask for theirs by the same name
+    assert "**rule_resources(_stage.name)" in (REPO / "workflow/rules/stages.smk").read_text()
+    runs |= {r.name for r in stage_rules()}
     # params.yaml names exactly these rules (the schema refuses a misspelt one)
     assert set(RuleResources.model_fields) == runs
     assert set(load_params(REPO / "params.yaml")["resources"]["rules"]) == runs

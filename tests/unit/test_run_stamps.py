@@ -1,6 +1,6 @@
 """A training job's stamp holds exactly what the job reads; model variants are parameters.
 
-The stamps are made here the way workflow/rules/common.smk makes them (run_stamp_file); the
+The stamps are made here the way the workflow makes them (pipeline/stamp_keeper.py StampKeeper.run); the
 workflow tests (integration/test_workflow.py) check what Snakemake plans when one changes."""
 
 from __future__ import annotations

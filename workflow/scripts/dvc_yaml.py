@@ -29,6 +29,7 @@ from pathlib import Path
 import yaml
 
 from tactilepipe.pipeline import codedeps, layout
+from tactilepipe.pipeline.stamp_keeper import CONTENT_STAMPS     # the ingest rules' content stamps
 from tactilepipe.core.atomic import write_text
 
 STAGES = [  # (name, Snakemake targets); "{scale}" is written as DVC's ${scale}, "{results}" is the build's folder
@@ -40,10 +41,9 @@ STAGES = [  # (name, Snakemake targets); "{scale}" is written as DVC's ${scale},
     ("tool_data", ["tool_data"]),
     ("tool_models", ["tool_normal", "tool_shear"]),
 ]
-# a parameter stamp: a stage's (common.smk param_stamp) or a training run's (params/tool-train/<run>.json),
+# a parameter stamp: a stage's or a training run's (params/tool-train/<run>.json; pipeline/stamp_keeper.py),
 # or a dry run's scratch copy of a changed one (changed-params/...)
 STAMP = re.compile(r"^(results/[^/]+/params|/.*/changed-params)/([^/]+/)?[^/]+\.json$")
-CONTENT_STAMPS = ".tactilepipe/content"     # the ingest rules' content stamps (common.smk content_stamp)
 COMMAND = "snakemake --cores 2 --workflow-profile workflow/profiles/default"
 METRICS = {"metrics.json", "provenance.json"}
 UNCACHED_OUTS = {"runtime.json"}
