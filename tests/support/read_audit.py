@@ -42,9 +42,14 @@ ALLOWED_PREFIXES = {
 }
 # modules every stage imports to build the command line, whatever it runs: every study's command
 # module (each imports its stage's code inside the stage's function) and what they import at their
-# top, which only names choices (the tool scenes, the model variants and depths)
+# top, which only names choices (the tool scenes, the model variants and depths) and each study's
+# parameter checks for its commands' declarations (checks=), which a stage of another study never
+# calls (and under the workflow no stage calls: it reads its stamp)
 PARSER_MODULES = ("src/tactilepipe/cli/", "src/tactilepipe/tool/scenes.py", "src/tactilepipe/tool/__init__.py",
-                  "src/tactilepipe/tool/model/__init__.py", "src/tactilepipe/tool/model/variants.py")
+                  "src/tactilepipe/tool/model/__init__.py", "src/tactilepipe/tool/model/variants.py",
+                  "src/tactilepipe/tool/checks.py", "src/tactilepipe/volume/__init__.py",
+                  "src/tactilepipe/volume/checks.py", "src/tactilepipe/papillarray/__init__.py",
+                  "src/tactilepipe/papillarray/checks.py", "src/tactilepipe/pipeline/studies.py")
 IMPORT_AUDIT_SITE = Path(__file__).parent / "import_audit"
 SIMULATED_TRIAL = re.compile(r"raw/tool/sim-[^/]+/[^/]+/meta\.json")
 
