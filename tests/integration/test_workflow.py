@@ -165,6 +165,9 @@ def test_plain_snakemake_uses_the_default_profile(tmp_path: Path):
     (["scale=huge"], "unknown scale 'huge'"),
     (["folds={n_folds: two, train_lifts_per_volume: 3, test_lifts_per_volume: 2}"], "folds.n_folds"),
     (["mlpp=1"], "'mlpp' was unexpected"),
+    # a recorded session that is not there: named by the session sheet before any job is planned
+    (["drift_session=d2026-01-01"], "WorkflowError in file"),
+    (["drift_session=d2026-01-01"], "raw/drift/d2026-01-01: session folder not found (params.yaml drift_session)"),
 ])
 def test_bad_config_stops_before_any_job(tmp_path: Path, override, expected):
     wd = copy_project(tmp_path)

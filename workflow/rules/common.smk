@@ -27,6 +27,10 @@ config.update(typed_like(config, _FILE_PARAMS))
 OVERRIDES = changed_leaves(config, _FILE_PARAMS)
 try:
     P = resolve(dict(config), "params.yaml (+ --config)", OVERRIDES, studies.CHECKS)   # every study's checks
+    # Every recording of the sessions params.yaml names (pipeline/sessions.py), read once per start:
+    # a session that cannot be read stops the run here, named, before any job is planned.
+    SHEET = SessionSheet(P)
+    SHEET.check()
 except TactilepipeError as exc:
     raise WorkflowError(str(exc)) from None
 CLI = f"{shlex.quote(sys.executable)} -m tactilepipe"
@@ -37,8 +41,6 @@ LOGS = f"{RESULTS}/logs"
 VOLUME = f"{RESULTS}/volume"
 DRIFT = f"{RESULTS}/drift"
 DRIFT_SESSION = P["drift_session"]
-# Every recording of the sessions params.yaml names (pipeline/sessions.py), read once per start.
-SHEET = SessionSheet(P)
 
 
 def _tell_snakemake_it_exists(path):

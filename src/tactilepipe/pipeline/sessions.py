@@ -126,6 +126,12 @@ class SessionSheet:
         """The tools of a kind's trials (the leave-one-tool-out runs leave each out in turn)."""
         return sorted({r.tool for r in self.trials(kind)})
 
+    def check(self) -> None:
+        """Read every session params.yaml names (their recordings, each tool trial's metadata): a
+        wrong one raises, naming the file."""
+        for _ in self.rows():
+            pass
+
     def rows(self):
         """One row per recording of the build: study, session, name, format, kind, tool, path."""
         for study in STUDIES:
