@@ -100,8 +100,9 @@ def names_in_docs(pages=None):
 
 
 def _known_names() -> dict[str, set[str]]:
-    import tactilepipe.cli.main  # noqa: F401  (declares every command)
+    from tactilepipe.cli.main import declare_commands
     from tactilepipe.cli.registry import COMMANDS
+    declare_commands()
     makefile = (REPO / "Makefile").read_text()
     from tactilepipe.pipeline.scenes import SCENES
     from tactilepipe.pipeline.stage_rules import stage_rules

@@ -38,10 +38,22 @@ def test_a_declared_output_is_a_target_of_its_scene(smoke_params):
      "must be a fixed path under the build's folder"),
     ({"scene": "volume", "inputs": {"dataset": "volume/{x}.parquet"}, "outputs": {"out": "volume/f.json"}},
      "must be a fixed path"),
+    ({"scene": "volume", "inputs": {"dataset": "volume/../../../etc/passwd"}, "outputs": {"out": "volume/f.json"}},
+     "must be a fixed path"),
+    ({"scene": "volume", "inputs": {"dataset": "volume/dataset.parquet"}, "outputs": {"out": "params/volume-split.json"}},
+     "outside its params and logs folders"),
     ({"scene": "lab", "inputs": {}, "outputs": {"out": "volume/f.json"}}, "scene 'lab' is none of"),
+    ({"scene": ["volume"], "inputs": {}, "outputs": {"out": "volume/f.json"}}, "is none of"),
     ({"scene": "volume", "inputs": {}, "outputs": {}}, "at least one output"),
     ({"scene": "volume", "inputs": {}, "outputs": {"out": "f.json"}, "threads": 2}, "must be a dict of scene"),
 ])
 def test_a_wrong_declaration_is_named_with_its_stage(decl, problem):
     with pytest.raises(TactilepipeError, match=f"stage volume-split: its rule= declaration.*{problem}"):
         stage_rules._checked("volume-split", decl)
+
+
+def test_an_argument_named_like_the_rules_own_inputs_is_refused(monkeypatch):
+    monkeypatch.setattr(stage_rules.codedeps, "stage_flags", lambda stage: {"--code", "--out"})
+    with pytest.raises(TactilepipeError, match="argument '--code' is given twice, or its name is one the rule keeps"):
+        stage_rules._checked("volume-split", {"scene": "volume", "inputs": {"code": "volume/a.json"},
+                                              "outputs": {"out": "volume/f.json"}})

@@ -2,7 +2,13 @@
 # fixed input and output files under the build's folder, each passed as the stage's --<key>.
 
 
-for _stage in stage_rules.stage_rules():
+try:
+    _STAGES = stage_rules.stage_rules()
+except TactilepipeError as exc:
+    raise WorkflowError(str(exc)) from None
+
+
+for _stage in _STAGES:
     rule:
         name: _stage.name
         input:
@@ -18,11 +24,12 @@ for _stage in stage_rules.stage_rules():
             f"{LOGS}/{_stage.scene}/{_stage.name}.log",
         params:
             # a shell line is formatted when its job runs, when the loop's variable is long gone:
-            # what it needs of this stage is captured here, as values
-            command=f"{CLI} {_stage.stage}",
+            # what it needs of this stage is captured here, as values (no machine's paths: a
+            # changed value re-runs the job)
+            stage=_stage.stage,
             files=_stage.file_args(RESULTS),
         shell:
-            "{params.command} --stamp {input.params:q} {params.files} 2> {log:q}"
+            "{CLI} {params.stage} --stamp {input.params:q} {params.files} 2> {log:q}"
 
 
 # A target per scene (`snakemake --cores 2 volume`): every file the scene ends in.

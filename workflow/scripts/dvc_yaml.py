@@ -48,6 +48,19 @@ COMMAND = "snakemake --cores 2 --workflow-profile workflow/profiles/default"
 METRICS = {"metrics.json", "provenance.json"}
 UNCACHED_OUTS = {"runtime.json"}
 ALWAYS_RULE_FILES = ["Snakefile", "workflow/rules/common.smk"]
+
+
+def workflow_library() -> list[str]:
+    """The workflow's own library: the modules of tactilepipe.pipeline that common.smk imports, and
+    those they import from it (the session sheet, the scenes, the stamps, the declared rules). Its
+    logic is the rule files', and an edit to it can change any stage's jobs: a dep of every stage,
+    as common.smk is. (Study modules they call are the code of the stages that run them.)"""
+    text = Path("workflow/rules/common.smk").read_text()
+    roots = set()
+    for sub, names in re.findall(r"^from tactilepipe\.pipeline(?:\.(\w+))? import ([\w, ]+)$", text, flags=re.M):
+        roots |= {f"tactilepipe.pipeline.{sub}"} if sub else {f"tactilepipe.pipeline.{n.strip()}" for n in names.split(",")}
+    modules = {m for r in roots for m in codedeps.module_closure(r) if m.startswith("tactilepipe.pipeline.")}
+    return sorted(str(codedeps.module_path(m).resolve().relative_to(Path.cwd().resolve())) for m in modules)
 HEADER = """\
 # GENERATED from the Snakemake graph by `make dvc.yaml` (workflow/scripts/dvc_yaml.py): do not edit.
 # Each stage runs Snakemake targets, so the logic exists once (workflow/rules); its deps are the
@@ -153,6 +166,7 @@ def generate(params: dict) -> str:
     for name, targets in STAGES:
         own = [j for j in jobs if owner.get(j) == name]
         deps, code, rule_files, keys = set(), set(), set(ALWAYS_RULE_FILES), {"scale"}
+        code.update(workflow_library())
         for j in own:
             rule_files.add(str(Path(j.rule.snakefile).resolve().relative_to(Path.cwd().resolve())))
             # a rule's stamps name the CLI stages whose code and parameters it depends on (its own,

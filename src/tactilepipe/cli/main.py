@@ -20,16 +20,23 @@ SHARED = {"main", "common", "registry", "provenance"}
 FIRST = ("volume", "drift", "tool", "study000", "rig", "compare", "sessions")
 
 
-def _declare_commands() -> None:
+def declare_commands() -> None:
+    """Import every study's module (once). A module that cannot be imported, or declares a
+    command wrongly, is one error naming its file."""
     found = {m.name for m in pkgutil.iter_modules(tactilepipe.cli.__path__)} - SHARED
     for name in [m for m in FIRST if m in found] + sorted(found - set(FIRST)):
-        importlib.import_module(f"tactilepipe.cli.{name}")
-
-
-_declare_commands()
+        module = f"tactilepipe.cli.{name}"
+        try:
+            importlib.import_module(module)
+        except TactilepipeError:
+            raise
+        except Exception as exc:                  # a new stage's module with a mistake in it
+            where = f"{tactilepipe.cli.__path__[0]}/{name}.py"
+            raise TactilepipeError(f"{where}: cannot be imported ({type(exc).__name__}: {exc})") from None
 
 
 def build_parser() -> argparse.ArgumentParser:
+    declare_commands()
     parser = argparse.ArgumentParser(prog="tactilepipe", description="every pipeline stage of tactilepipe")
     settings = argparse.ArgumentParser(add_help=False)
     settings.add_argument("--params", default="params.yaml", help="parameter file (default: params.yaml)")
@@ -47,6 +54,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    try:
+        declare_commands()
+    except TactilepipeError as exc:
+        print(f"tactilepipe: error: {exc}", file=sys.stderr)
+        return 2
     args = build_parser().parse_args(argv)
     spec = args.command_spec
     try:

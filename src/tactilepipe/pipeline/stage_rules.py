@@ -14,6 +14,7 @@ rules in workflow/rules/, written by hand.
 
 from __future__ import annotations
 
+import posixpath
 import re
 from dataclasses import dataclass
 
@@ -23,6 +24,12 @@ from tactilepipe.pipeline.scenes import SCENES
 
 KEYS = {"scene", "inputs", "outputs", "local"}
 FLAG = re.compile(r"[a-z][a-z0-9-]*")
+# names a generated rule's inputs and outputs cannot take: the rule's own inputs, and the names
+# Snakemake's named lists keep for themselves
+RESERVED = {"stamp", "params", "code", "keys", "items", "get", "count", "update", "copy", "index", "size",
+            "size_mb", "size_files", "size_files_mb", "size_files_gb", "size_tempfiles"}
+# folders of a build the workflow writes itself (pipeline/layout.py)
+OWN_FOLDERS = ("params", "logs")
 
 
 @dataclass(frozen=True)
@@ -76,7 +83,7 @@ def _checked(stage: str, decl) -> StageRule:
     where = f"stage {stage}: its rule= declaration"
     if not isinstance(decl, dict) or not {"scene", "inputs", "outputs"} <= set(decl) or set(decl) - KEYS:
         raise TactilepipeError(f"{where} must be a dict of scene, inputs, outputs (and local), got {decl!r}")
-    if decl["scene"] not in SCENES:
+    if not isinstance(decl["scene"], str) or decl["scene"] not in SCENES:
         raise TactilepipeError(f"{where}: scene '{decl['scene']}' is none of {', '.join(SCENES)}")
     if not decl["outputs"]:
         raise TactilepipeError(f"{where}: a rule needs at least one output")
@@ -89,11 +96,15 @@ def _checked(stage: str, decl) -> StageRule:
             if not (isinstance(key, str) and FLAG.fullmatch(key)) or f"--{key}" not in flags:
                 raise TactilepipeError(f"{where}: {part} key '{key}' is not one of the stage's arguments "
                                        f"({', '.join(sorted(flags))})")
-            if key in ("stamp", "params") or key in files:
-                raise TactilepipeError(f"{where}: argument '--{key}' is given twice or is the stage's stamp")
-            if not isinstance(path, str) or not path or path.startswith(("/", "..")) or "{" in path:
+            if _key(key) in RESERVED or key in files:
+                raise TactilepipeError(f"{where}: argument '--{key}' is given twice, or its name is one the "
+                                       f"rule keeps for itself ({', '.join(sorted(RESERVED))})")
+            if not isinstance(path, str) or not path or "{" in path or "\\" in path or \
+                    posixpath.normpath(path) != path or path.startswith(("/", "../")) or \
+                    path.split("/")[0] in OWN_FOLDERS:
                 raise TactilepipeError(f"{where}: {part}.{key}: '{path}' must be a fixed path under the build's "
-                                       f"folder (results/<build>/), e.g. volume/summary.json")
+                                       f"folder (results/<build>/), outside its {' and '.join(OWN_FOLDERS)} "
+                                       f"folders, e.g. volume/summary.json")
             files[key] = path
     return StageRule(stage, decl["scene"], tuple(decl["inputs"].items()), tuple(decl["outputs"].items()),
                      bool(decl.get("local", False)))

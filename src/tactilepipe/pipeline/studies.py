@@ -6,8 +6,10 @@ that editing one re-runs that study's stages only. A stage run by hand runs its 
 (the ``checks=`` of its ``@command``); the callers that stand for the whole file run all of them
 through this module: the Snakemake workflow (workflow/rules/common.smk, before any job is
 planned; the dvc.yaml generator plans through it), ``tactilepipe diff``, and tests and scripts
-that mean "params.yaml as the workflow would take it". No stage imports this module, so no
-stage's code holds another study's checks.
+that mean "params.yaml as the workflow would take it". No pipeline stage's code holds this
+module (only the commands that check the whole file: `diff`, `sessions`), so no stage's code
+holds another study's checks. (Every process of the command line imports each study's command
+module to build its parser, checks included, but runs only its own stage's.)
 """
 
 from __future__ import annotations
