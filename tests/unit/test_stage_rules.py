@@ -57,3 +57,21 @@ def test_an_argument_named_like_the_rules_own_inputs_is_refused(monkeypatch):
     with pytest.raises(TactilepipeError, match="argument '--code' is given twice, or its name is one the rule keeps"):
         stage_rules._checked("volume-split", {"scene": "volume", "inputs": {"code": "volume/a.json"},
                                               "outputs": {"out": "volume/f.json"}})
+
+
+def test_a_new_stage_module_with_a_mistake_is_one_error_naming_it(tmp_path):
+    """The command line finds its study modules: one that cannot be imported (a new stage's, with a
+    mistake) stops every command with one line naming its file, not a traceback."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+    src = tmp_path / "src"
+    shutil.copytree(Path(stage_rules.__file__).parents[1], src / "tactilepipe", ignore=shutil.ignore_patterns("__pycache__"))
+    (src / "tactilepipe/cli/volume_summary.py").write_text("from tactilepipe.volume import no_such_module\n")
+    proc = subprocess.run([sys.executable, "-m", "tactilepipe", "volume-split", "--help"], capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(src)}, cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert "cli/volume_summary.py: cannot be imported (ImportError" in proc.stderr, proc.stderr
