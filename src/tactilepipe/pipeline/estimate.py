@@ -23,6 +23,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Callable, Iterable
 
+from tactilepipe.pipeline.sessions import is_simulated
 from tactilepipe.pipeline import sourcecache
 from tactilepipe.pipeline.layout import results_root
 from tactilepipe.tool.model.variants import NAMED_ARCHITECTURES, Architecture
@@ -72,7 +73,7 @@ def planned_pairs(p: dict, scene: str, root: Path = Path(".")) -> int | None:
     from tactilepipe.tool.scenes import scene_label
     kind = scene_label(scene)
     sessions = p["tool_sessions"]
-    if not sessions or not all(s.startswith("sim-") for s in sessions):
+    if not sessions or not all(is_simulated(s) for s in sessions):
         return None                                 # real recordings not yet ingested: unknown
     from tactilepipe.tool.data.dataset import pair_step
     from tactilepipe.tool.sim import frames_per_trial, session_plan
