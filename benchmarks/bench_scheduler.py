@@ -122,11 +122,9 @@ def scheduler_share(wd: Path, jobs: int, extra: list[str]) -> tuple[float, float
                             start_new_session=True)
     started, out = wd / "started", wd / "out"
 
-    def count(folder: Path) -> int:
-        return sum(1 for _ in folder.rglob("*.done")) if folder == out else sum(1 for _ in folder.iterdir())
-
     def wait_for(folder: Path, n: int) -> None:
-        while count(folder) < n:
+        """Until ``folder`` holds ``n`` files (a job's start mark, or its output one folder down)."""
+        while sum(p.is_file() for p in folder.rglob("*")) < n:
             if proc.poll() is not None:
                 raise SystemExit(f"snakemake ended early ({proc.returncode}): {proc.stderr.read()[-2000:]}")
             time.sleep(0.02)

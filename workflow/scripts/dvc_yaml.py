@@ -61,6 +61,8 @@ def workflow_library() -> list[str]:
         roots |= {f"tactilepipe.pipeline.{sub}"} if sub else {f"tactilepipe.pipeline.{n.strip()}" for n in names.split(",")}
     modules = {m for r in roots for m in codedeps.module_closure(r) if m.startswith("tactilepipe.pipeline.")}
     return sorted(str(codedeps.module_path(m).resolve().relative_to(Path.cwd().resolve())) for m in modules)
+
+
 HEADER = """\
 # GENERATED from the Snakemake graph by `make dvc.yaml` (workflow/scripts/dvc_yaml.py): do not edit.
 # Each stage runs Snakemake targets, so the logic exists once (workflow/rules); its deps are the
@@ -163,10 +165,11 @@ def generate(params: dict) -> str:
               for name, _ in STAGES}
     doc = {"stages": {}}
     plots = []
+    library = workflow_library()                        # the same for every stage
     for name, targets in STAGES:
         own = [j for j in jobs if owner.get(j) == name]
         deps, code, rule_files, keys = set(), set(), set(ALWAYS_RULE_FILES), {"scale"}
-        code.update(workflow_library())
+        code.update(library)
         for j in own:
             rule_files.add(str(Path(j.rule.snakefile).resolve().relative_to(Path.cwd().resolve())))
             # a rule's stamps name the CLI stages whose code and parameters it depends on (its own,

@@ -55,11 +55,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     try:
-        declare_commands()
+        parser = build_parser()               # declares every study's commands
     except TactilepipeError as exc:
         print(f"tactilepipe: error: {exc}", file=sys.stderr)
         return 2
-    args = build_parser().parse_args(argv)
+    args = parser.parse_args(argv)
     spec = args.command_spec
     try:
         p = stage_params(args, *spec.params, checks=spec.checks) if spec.params else {}

@@ -23,9 +23,9 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Callable, Iterable
 
-from tactilepipe.pipeline.sessions import is_simulated
 from tactilepipe.pipeline import sourcecache
 from tactilepipe.pipeline.layout import results_root
+from tactilepipe.pipeline.sessions import is_simulated
 from tactilepipe.tool.model.variants import NAMED_ARCHITECTURES, Architecture
 
 # (rule, wildcards, resources, threads) of one job, as Snakemake's DAG has it
