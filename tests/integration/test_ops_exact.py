@@ -38,10 +38,11 @@ PROBE = Path(__file__).resolve().parents[1] / "support" / "ops_probe.py"
 BATCH = os.environ.get("TACTILEPIPE_OPS_BATCH", "4")
 PROBE_ARGS = ("--widths", SUITE_WIDTHS, "--batch", BATCH, "--image-size", "16", "--unpinned-sqrt")
 # ops of each part of the path: the probe must have seen them, or it no longer watches that part
-# The convolutions and linear layers run the project's fixed-order products (tool/model/fixed_order.py),
-# outside ATen: tests/unit/test_fixed_order.py requires their bytes under the same emulated CPUs, and
-# their outputs reach the ops hashed here (the bias additions, batch norm's input, the gradients).
-EXPECTED_OPS = {"aten.normal_.default", "aten.constant_pad_nd.default", "aten.native_batch_norm.default",
+# The convolutions and linear layers run the project's fixed-order products, im2col and col2im
+# (tool/model/fixed_order.py), outside ATen: tests/unit/test_fixed_order.py requires the products'
+# bytes under the same emulated CPUs and the C loops' to be those of the torch ops they replace,
+# and their outputs reach the ops hashed here (the bias additions, batch norm's input, the gradients).
+EXPECTED_OPS = {"aten.normal_.default", "aten.native_batch_norm.default",
                 "aten.native_batch_norm_backward.default", "aten.sigmoid.default", "aten.sigmoid_backward.default",
                 "aten.relu_.default", "aten.threshold_backward.default", "aten.max_pool2d_with_indices.default",
                 "aten.max_pool2d_with_indices_backward.default", "aten.mean.dim", "aten.sgn.default",

@@ -84,6 +84,48 @@ def test_the_convolution_and_its_gradients_are_torchs(b, c, h, n, k, s, p, bias)
         torch.testing.assert_close(got, ref, rtol=1e-4, atol=1e-4)
 
 
+def _reference_conv(x, w, bias, gy, stride, padding):
+    """The convolution's forward and gradients spelled out with torch's own ops: im2col as a strided
+    copy, col2im as one strided addition per tap into zeros (taps in increasing order), the bias'
+    gradient as the product with a row of ones. The C loops must give these bytes."""
+    (sh, sw), (ph, pw) = stride, padding
+    n, c, kh, kw = w.shape
+    xh = F.pad(x.permute(0, 2, 3, 1), (0, 0, pw, pw, ph, ph))
+    b, hp, wp, _ = xh.shape
+    ho, wo = (hp - kh) // sh + 1, (wp - kw) // sw + 1
+    s0, s1, s2, s3 = xh.stride()
+    cols = xh.as_strided((b, ho, wo, kh, kw, c), (s0, s1 * sh, s2 * sw, s1, s2, s3)).reshape(b * ho * wo, -1)
+    wm = w.permute(0, 2, 3, 1).reshape(n, -1)
+    y = fixed_order.gemm(cols, wm.t()).view(b, ho, wo, n)
+    g = gy.permute(0, 2, 3, 1).reshape(-1, n)
+    gw = fixed_order.gemm(g.t(), cols).view(n, kh, kw, c).permute(0, 3, 1, 2)
+    g6 = fixed_order.gemm(g, wm).view(b, ho, wo, kh, kw, c)
+    gxp = torch.zeros(b, hp, wp, c)
+    for i in range(kh):
+        for j in range(kw):
+            gxp[:, i:i + sh * (ho - 1) + 1:sh, j:j + sw * (wo - 1) + 1:sw, :] += g6[:, :, :, i, j, :]
+    gx = gxp[:, ph:hp - ph, pw:wp - pw, :].permute(0, 3, 1, 2)
+    gb = fixed_order.gemm(torch.ones(1, g.shape[0]), g)[0] if bias is not None else None
+    return (y + (bias if bias is not None else 0)).permute(0, 3, 1, 2), gx, gw, gb
+
+
+@pytest.mark.parametrize("b,c,h,n,k,s,p", [(4, 3, 9, 5, 3, 1, 1), (4, 8, 7, 16, 3, 2, 1), (2, 8, 5, 7, 1, 2, 0),
+                                           (3, 6, 9, 20, 7, 2, 3), (2, 5, 2, 6, 7, 1, 3), (5, 70, 4, 9, 3, 1, 1)])
+def test_the_convolutions_c_loops_give_the_bytes_of_torchs_copies_and_additions(b, c, h, n, k, s, p):
+    g = torch.Generator().manual_seed(b * c * h + k)
+    cl = torch.channels_last
+    x = torch.randn(b, c, h, h, generator=g).contiguous(memory_format=cl).requires_grad_()
+    w = torch.randn(n, c, k, k, generator=g).contiguous(memory_format=cl).requires_grad_()
+    bv = torch.randn(n, generator=g).requires_grad_()
+    y = fixed_order._Conv2d.apply(x, w, bv, (s, s), (p, p))
+    gy = torch.randn(y.shape, generator=g).contiguous(memory_format=cl)
+    got = (y, *torch.autograd.grad(y, [x, w, bv], gy))
+    with torch.no_grad():
+        want = _reference_conv(x, w, bv, gy, (s, s), (p, p))
+    for name, a, r in zip(("output", "input grad", "weight grad", "bias grad"), got, want):
+        assert torch.equal(a, r), name
+
+
 def test_the_linear_layer_and_its_gradients_are_torchs():
     g = torch.Generator().manual_seed(3)
     x, w, bv = (torch.randn(*shape, generator=g).requires_grad_() for shape in [(3, 5, 7), (9, 7), (9,)])

@@ -46,3 +46,26 @@ def test_training_refuses_portable_kernels_on_two_threads(tmp_path):
     with pytest.raises(ConfigError, match="num_threads 2 with kernels: portable"):
         train(data, make_split_dict(data), quick_cfg(kernels="portable", num_threads=2), tmp_path / "run")
     assert not (tmp_path / "run").exists()
+
+
+def test_freed_training_memory_stays_in_the_process():
+    # glibc's default gives blocks of 128 KiB and more back to the kernel when freed; a training
+    # step would fault them in again every time (core/allocator.py). A step's pattern: many blocks
+    # allocated, written, and freed together; with the call, the next step reuses their pages.
+    code = ("import ctypes, resource\n"
+            "from tactilepipe.core.allocator import keep_freed_memory\n"
+            "assert keep_freed_memory()\n"
+            "libc = ctypes.CDLL(None); libc.malloc.restype = ctypes.c_void_p; libc.malloc.argtypes = [ctypes.c_size_t]\n"
+            "libc.free.argtypes = [ctypes.c_void_p]\n"
+            "def touch():\n"
+            "    blocks = [libc.malloc(1 << 20) for _ in range(16)]\n"
+            "    for p in blocks: ctypes.memset(p, 1, 1 << 20)\n"
+            "    for p in blocks: libc.free(p)\n"
+            "touch(); before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt\n"
+            "for _ in range(5): touch()\n"
+            "print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before)\n")
+    faults = int(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout)
+    assert faults < 100                  # 5 x 16 x 256 pages if the blocks went back to the kernel
+    without = code.replace("assert keep_freed_memory()", "pass")
+    assert int(subprocess.run([sys.executable, "-c", without], capture_output=True, text=True,
+                              check=True).stdout) > 5 * 1000

@@ -113,3 +113,15 @@ def test_weights_that_diverged_are_never_written(tmp_path):
                                                rf"'{name}' holds 1 non-finite"):
         save_checkpoint({"format": CHECKPOINT_FORMAT, "model": state, "meta": {"epoch": 3}}, path)
     assert not path.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_the_same_weights_are_the_same_file_bytes(tmp_path):
+    # the atomic write's temporary has a random name; torch.save given a path names its archive
+    # folder after it, and DVC would then see every rebuilt checkpoint as changed
+    from tactilepipe.tool.model.checkpoint import save_checkpoint
+    state = build_model("full", 18, 16, "sigmoid", 8).state_dict()
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    for folder in ("a", "b"):
+        save_checkpoint({"format": CHECKPOINT_FORMAT, "model": state, "meta": {"epoch": 3}}, tmp_path / folder / "best.pt")
+    assert (tmp_path / "a" / "best.pt").read_bytes() == (tmp_path / "b" / "best.pt").read_bytes()

@@ -71,8 +71,10 @@ def save_checkpoint(obj: dict, path: Path) -> None:
         raise TactilepipeError(f"{path}: not written: the trained weights diverged, tensor '{name}' holds {count} "
                                f"non-finite value(s) (NaN or inf) of {size} (epoch {obj.get('meta', {}).get('epoch')}); "
                                f"a lower tool_train.lr may train")
-    with atomic_path(path) as tmp:
-        torch.save(obj, tmp)
+    # through an open file: given a path, torch.save names the archive's folder after the file, here the
+    # temporary's random name, so the same weights would give other bytes on every run
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        torch.save(obj, f)
 
 
 def write_history(path: Path, history: list[dict]) -> None:

@@ -9,8 +9,10 @@ without FMA (docs/reproducibility.md, "Portable kernels", has both measured).
 
 A convolution is an im2col and one ``gemm`` forward, and two more for its gradients: the input's
 (followed by a col2im that adds each tap's share in a fixed tap order, plain IEEE additions) and the
-weight's, whose chains run over every output pixel of the batch in order. A bias' gradient is a
-``gemm`` with a row of ones, so it too is one chain. ``conv2d`` and ``linear`` take these paths
+weight's, whose chains run over every output pixel of the batch in order. A bias' gradient is the
+product with a row of ones, so it too is one chain (computed as the additions it amounts to). The
+im2col and col2im are C loops too: torch's strided copies and per-tap additions took as long as the
+products they feed (docs/reproducibility.md). ``conv2d`` and ``linear`` take these paths
 while ``set_enabled(True)`` is in force (kernels.py turns it on with the portable kernels) and
 call torch's own otherwise.
 
@@ -92,7 +94,11 @@ def _library():
         for name in ("fo_gemm", "fo_gemm_reference"):
             getattr(lib, name).argtypes = [L, L, L, P, L, L, P, L, L, P, L, L]
         lib.fo_gemm.restype = ctypes.c_int
-        lib.fo_gemm_reference.restype = None
+        lib.fo_im2col.argtypes = [L, L, L, L, P, L, L, L, L] + [L] * 8 + [P]
+        lib.fo_col2im.argtypes = [L, L, L, L, P] + [L] * 8 + [P]
+        lib.fo_colsum.argtypes = [L, L, P, L, L, P]
+        for name in ("fo_gemm_reference", "fo_im2col", "fo_col2im", "fo_colsum"):
+            getattr(lib, name).restype = None
         _lib = lib
     return _lib
 
@@ -123,21 +129,39 @@ def gemm(a: torch.Tensor, b: torch.Tensor, reference: bool = False, out: torch.T
 
 
 def _bias_grad(g: torch.Tensor) -> torch.Tensor:
-    """Column sums of the (rows, n) gradient, each one chain over the rows in order."""
-    return gemm(torch.ones(1, g.shape[0]), g)[0]
+    """Column sums of the (rows, n) gradient, each one chain over the rows in order: the product
+    with a row of ones, as plain additions (fma(1, x, acc) is acc + x)."""
+    rows, n = g.shape
+    out = torch.empty(n, dtype=torch.float32)
+    _library().fo_colsum(rows, n, g.data_ptr(), g.stride(0), g.stride(1), out.data_ptr())
+    return out
+
+
+def _out_size(size: int, kernel: int, stride: int, padding: int) -> int:
+    return (size + 2 * padding - kernel) // stride + 1
 
 
 def _columns(x: torch.Tensor, kh: int, kw: int, stride: tuple, padding: tuple) -> tuple[torch.Tensor, int, int]:
-    """im2col of an NHWC tensor: (B*Ho*Wo, kh*kw*C), taps outer, channels inner."""
+    """im2col of an NHWC tensor (any strides): (B*Ho*Wo, kh*kw*C), taps outer, channels inner."""
     b, h, w, c = x.shape
     (sh, sw), (ph, pw) = stride, padding
-    ho, wo = (h + 2 * ph - kh) // sh + 1, (w + 2 * pw - kw) // sw + 1
-    if kh == kw == 1 and ph == pw == 0:
-        return x[:, ::sh, ::sw, :].reshape(b * ho * wo, c), ho, wo
-    xp = F.pad(x, (0, 0, pw, pw, ph, ph)) if ph or pw else x.contiguous()
-    s0, s1, s2, s3 = xp.stride()
-    cols = xp.as_strided((b, ho, wo, kh, kw, c), (s0, s1 * sh, s2 * sw, s1, s2, s3))
-    return cols.reshape(b * ho * wo, kh * kw * c), ho, wo
+    ho, wo = _out_size(h, kh, sh, ph), _out_size(w, kw, sw, pw)
+    if kh == kw == 1 and ph == pw == 0 and sh == sw == 1 and x.is_contiguous():
+        return x.view(b * h * w, c), ho, wo
+    cols = torch.empty(b * ho * wo, kh * kw * c, dtype=torch.float32)
+    _library().fo_im2col(b, h, w, c, x.data_ptr(), *x.stride(), kh, kw, sh, sw, ph, pw, ho, wo, cols.data_ptr())
+    return cols, ho, wo
+
+
+def _uncolumns(gc: torch.Tensor, shape: tuple, kh: int, kw: int, stride: tuple, padding: tuple) -> torch.Tensor:
+    """col2im: the NHWC input's gradient from its columns' gradient ``gc`` (contiguous), each element
+    the sum of the taps that read it, from 0 in increasing tap order (fixed_order_c.py fo_col2im)."""
+    b, h, w, c = shape
+    (sh, sw), (ph, pw) = stride, padding
+    gx = torch.empty(b, h, w, c, dtype=torch.float32)
+    _library().fo_col2im(b, h, w, c, gc.data_ptr(), kh, kw, sh, sw, ph, pw, _out_size(h, kh, sh, ph),
+                         _out_size(w, kw, sw, pw), gx.data_ptr())
+    return gx
 
 
 class _Conv2d(torch.autograd.Function):
@@ -171,16 +195,10 @@ class _Conv2d(torch.autograd.Function):
             gb = _bias_grad(g)
         if ctx.needs_input_grad[0]:
             gc = gemm(g, wm)                                  # (B*Ho*Wo, kh*kw*C)
-            ho, wo = (h + 2 * ph - kh) // sh + 1, (w + 2 * pw - kw) // sw + 1
             if kh == kw == 1 and ph == pw == 0 and sh == sw == 1:
                 gxh = gc.view(b, h, w, c)
-            else:                                              # col2im: taps added in a fixed order
-                gxp = torch.zeros(b, h + 2 * ph, w + 2 * pw, c)
-                g6 = gc.view(b, ho, wo, kh, kw, c)
-                for i in range(kh):
-                    for j in range(kw):
-                        gxp[:, i:i + sh * (ho - 1) + 1:sh, j:j + sw * (wo - 1) + 1:sw, :] += g6[:, :, :, i, j, :]
-                gxh = gxp[:, ph:ph + h, pw:pw + w, :]
+            else:
+                gxh = _uncolumns(gc, (b, h, w, c), kh, kw, (sh, sw), (ph, pw))
             gx = gxh.permute(0, 3, 1, 2)
         return gx, gw, gb, None, None
 

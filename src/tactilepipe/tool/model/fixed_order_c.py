@@ -62,6 +62,15 @@ static void kernel_6x16(long kc, const float *a, const float *b, float *t, long 
 /* B[k0:k0+kc, j0:j0+NR] -> kc rows of NR floats (columns past n padded with zeros) */
 static void pack_b(long kc, long n, const float *b, long sk, long sn, float *out)
 {
+    if (sk == 1 && sn != 1) {                       /* B transposed in memory: read each column in order */
+        for (long j = 0; j < n; j++) {
+            const float *col = b + j * sn;
+            for (long k = 0; k < kc; k++) out[k * NR + j] = col[k];
+        }
+        for (long k = 0; k < kc; k++)
+            for (long j = n; j < NR; j++) out[k * NR + j] = 0.0f;
+        return;
+    }
     for (long k = 0; k < kc; k++, out += NR) {
         const float *row = b + k * sk;
         long j = 0;
@@ -76,9 +85,18 @@ static void pack_b(long kc, long n, const float *b, long sk, long sn, float *out
 /* A[i0:i0+MR, k0:k0+kc] -> kc columns of MR floats (rows past m padded with zeros) */
 static void pack_a(long kc, long m, const float *a, long sm, long sk, float *out)
 {
-    if (m == MR && sk == 1) {
-        for (long k = 0; k < kc; k++, out += MR)
-            for (long i = 0; i < MR; i++) out[i] = a[i * sm + k];
+    if (m == MR && sk == 1) {                       /* six rows, each read in order */
+        const float *r0 = a, *r1 = a + sm, *r2 = a + 2 * sm, *r3 = a + 3 * sm, *r4 = a + 4 * sm, *r5 = a + 5 * sm;
+        for (long k = 0; k < kc; k++, out += MR) {
+            out[0] = r0[k]; out[1] = r1[k]; out[2] = r2[k]; out[3] = r3[k]; out[4] = r4[k]; out[5] = r5[k];
+        }
+        return;
+    }
+    if (m == MR && sm == 1) {                       /* A transposed in memory: six floats in a row per k */
+        for (long k = 0; k < kc; k++, out += MR) {
+            const float *col = a + k * sk;
+            out[0] = col[0]; out[1] = col[1]; out[2] = col[2]; out[3] = col[3]; out[4] = col[4]; out[5] = col[5];
+        }
         return;
     }
     for (long k = 0; k < kc; k++, out += MR) {
@@ -137,6 +155,65 @@ int fo_gemm(long m, long n, long k, const float *a, long sam, long sak, const fl
     free(bp);
     free(ap);
     return 0;
+}
+
+/* im2col of an NHWC tensor x (any strides): cols is (b*ho*wo) rows of kh*kw*c floats, taps outer,
+   channels inner; a tap outside the image is 0. Copies only: no arithmetic. */
+void fo_im2col(long b, long h, long w, long c, const float *x, long sxb, long sxh, long sxw, long sxc,
+               long kh, long kw, long sy, long sx, long py, long px, long ho, long wo, float *cols)
+{
+    for (long n = 0; n < b; n++)
+        for (long oy = 0; oy < ho; oy++)
+            for (long ox = 0; ox < wo; ox++)
+                for (long i = 0; i < kh; i++) {
+                    long iy = oy * sy + i - py;
+                    for (long j = 0; j < kw; j++, cols += c) {
+                        long ix = ox * sx + j - px;
+                        if (iy < 0 || iy >= h || ix < 0 || ix >= w) { memset(cols, 0, sizeof(float) * c); continue; }
+                        const float *src = x + n * sxb + iy * sxh + ix * sxw;
+                        if (sxc == 1) memcpy(cols, src, sizeof(float) * c);
+                        else for (long ch = 0; ch < c; ch++) cols[ch] = src[ch * sxc];
+                    }
+                }
+}
+
+/* col2im: gx (b, h, w, c), contiguous NHWC, from the columns' gradient gc (b*ho*wo rows of kh*kw*c).
+   Each element starts from 0 and adds the taps that read it in increasing (i, j) order, one IEEE
+   addition each: the order in which a zero tensor receives one strided addition per tap. */
+void fo_col2im(long b, long h, long w, long c, const float *gc, long kh, long kw, long sy, long sx, long py,
+               long px, long ho, long wo, float *gx)
+{
+    long row = kh * kw * c;
+    for (long n = 0; n < b; n++)
+        for (long y = 0; y < h; y++)
+            for (long x = 0; x < w; x++, gx += c) {
+                for (long ch = 0; ch < c; ch++) gx[ch] = 0.0f;
+                for (long i = 0; i < kh; i++) {
+                    long ty = y + py - i;
+                    if (ty < 0 || ty % sy) continue;
+                    long oy = ty / sy;
+                    if (oy >= ho) continue;
+                    for (long j = 0; j < kw; j++) {
+                        long tx = x + px - j;
+                        if (tx < 0 || tx % sx) continue;
+                        long ox = tx / sx;
+                        if (ox >= wo) continue;
+                        const float *src = gc + ((n * ho + oy) * wo + ox) * row + (i * kw + j) * c;
+                        for (long ch = 0; ch < c; ch++) gx[ch] = gx[ch] + src[ch];
+                    }
+                }
+            }
+}
+
+/* out[j] = column j's sum over the rows of g (rows x n, strides sr, sn), from 0 in row order: the chain
+   fma(1, g[r, j], acc) of the product with a row of ones, which is the plain addition acc + g[r, j]. */
+void fo_colsum(long rows, long n, const float *g, long sr, long sn, float *out)
+{
+    for (long j = 0; j < n; j++) out[j] = 0.0f;
+    for (long r = 0; r < rows; r++, g += sr) {
+        if (sn == 1) for (long j = 0; j < n; j++) out[j] = out[j] + g[j];
+        else for (long j = 0; j < n; j++) out[j] = out[j] + g[j * sn];
+    }
 }
 
 /* The same chains, one element at a time: the definition the blocked product must match bit for bit. */

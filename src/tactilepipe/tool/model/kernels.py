@@ -29,6 +29,7 @@ from __future__ import annotations
 import os
 import sys
 
+from tactilepipe.core.allocator import keep_freed_memory
 from tactilepipe.core.errors import ConfigError, TactilepipeError
 
 KERNEL_MODES = ("portable", "native")
@@ -55,6 +56,7 @@ def use_kernels(mode: str) -> dict:
     ``portable`` this must come before torch is first imported (the environment it sets is read
     then); called later it raises unless the process was already started that way."""
     check_mode(mode)
+    keep_freed_memory()                      # speed only: where memory comes from, not what is computed
     if mode == "portable":
         unset = {k: v for k, v in PORTABLE_ENV.items() if os.environ.get(k) != v}
         if unset and "torch" in sys.modules:
