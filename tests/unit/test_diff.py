@@ -89,6 +89,31 @@ def test_a_scene_without_draws_reports_any_change_and_a_missing_scene_says_so():
     assert diff.compare_scene("volume", None, new).verdict == "not in the old run"
 
 
+def test_values_that_differ_in_their_last_digits_are_rounding_not_changes():
+    # measured on the committed default build: an AVX2 machine's drift fits against an AVX-512 one's
+    old = {"metrics": {"recalibration_interval_min": {"loaded": 2.766123456789},
+                       "fits": {"loo_r2": 0.9922, "model": "exp"}}, "provenance": {}}
+    new = copy.deepcopy(old)
+    new["metrics"]["recalibration_interval_min"]["loaded"] += 2.3e-12
+    d = diff.compare_scene("drift", old, new)
+    assert d.verdict == "unchanged but for rounding: 1 values differ in their last digits only (at most 8e-13 relative)"
+    assert diff.failures([d], {"loaded": 0.0}) == []          # not worse by any tolerance a user can set
+    # beyond 1e-9 of the value it is a change, reported as before
+    new["metrics"]["fits"]["loo_r2"] = 0.9922 * (1 + 2e-9)
+    d = diff.compare_scene("drift", old, new)
+    assert d.verdict.startswith("1 beyond noise: fits.loo_r2") and d.verdict.endswith(
+        "(changed); 1 values differ in their last digits only (at most 8e-13 relative)"), d.verdict
+    assert {r.metric: r.verdict for r in d.rows if r.verdict != "same"} == {
+        "fits.loo_r2": "changed", "recalibration_interval_min.loaded": "rounding"}
+
+
+def test_a_score_whose_draws_differ_in_rounding_only_is_not_judged_as_noise():
+    old = _tool_run(full=BASE)
+    new = _tool_run(full=[v * (1 + 1e-14) for v in BASE])
+    d = diff.compare_scene("tool_normal", old, new)
+    assert _row(d, "full", "mae").verdict == "rounding" and d.verdict.startswith("unchanged but for rounding"), d.verdict
+
+
 # --- non-finite scores are regressions, never noise ---------------------------------------------------
 
 def test_a_score_that_became_nan_or_null_fails_any_tolerance_and_is_not_noise():

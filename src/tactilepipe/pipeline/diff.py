@@ -15,7 +15,9 @@ A run is a git revision, a DVC experiment or the workspace; its files are read t
 - **non-finite**: a score that is NaN, infinite or null in the new run (its mean or any one draw)
   is never noise: it is its own verdict, and a metric held to a tolerance fails on it.
 - **single values** (the drift fits, the volume table, ...): the pipeline makes them
-  deterministically, so any change is reported as changed, with no noise estimate.
+  deterministically, so any change is reported as changed, with no noise estimate; but a value
+  (or every draw of a score) within ``ROUNDING`` of the other, relative, is ``rounding``: the same
+  arithmetic summed in another order (another CPU's vector width in NumPy or BLAS).
 
 A scene's verdict is one line: unchanged, changes within noise only, or the signals, worst first.
 """
@@ -49,7 +51,7 @@ class Row:
     metric: str
     old: float | str | bool | None
     new: float | str | bool | None
-    verdict: str                       # same | noise | signal | non-finite | changed | added | removed
+    verdict: str                       # same | noise | signal | non-finite | changed | rounding | added | removed
     how: str = ""                      # paired over K draws | intervals | single value
     low: float = math.nan              # interval of the change, where judged
     high: float = math.nan
@@ -97,9 +99,12 @@ class SceneDiff:
     def verdict(self) -> str:
         if self.note:
             return self.note
-        moved = [r for r in self.rows if r.verdict != "same"]
+        rounded = [r for r in self.rows if r.verdict == "rounding"]
+        moved = [r for r in self.rows if r.verdict not in ("same", "rounding")]
+        largest = max((abs(r.change) / max(abs(r.old), abs(r.new)) for r in rounded), default=0.0)
+        last = f"{len(rounded)} values differ in their last digits only (at most {largest:.1g} relative)" if rounded else ""
         if not moved:
-            return "unchanged"
+            return f"unchanged but for rounding: {last}" if rounded else "unchanged"
         # a scene scored over repeated draws is judged by those scores; its single values (derived
         # from the same models) are counted beside them. A scene without draws by its values.
         judged = [r for r in moved if (r.how != "single value") == self.scored]
@@ -107,7 +112,7 @@ class SceneDiff:
         # a value that is no longer a number first: it is worse than any size of change
         signals = sorted((r for r in judged if r.verdict != "noise"),
                          key=lambda r: -math.inf if r.nonfinite else -(r.worse_by if not math.isnan(r.worse_by) else -1))
-        tail = f"; {others} other values changed" if others else ""
+        tail = (f"; {others} other values changed" if others else "") + (f"; {last}" if last else "")
         if not judged:
             return f"scores unchanged{tail}"
         if not signals:
@@ -263,8 +268,19 @@ def single_values(scene: str, metrics: dict) -> dict[str, float | str | bool]:
 
 # ----------------------------------------------------------------------------- comparing
 
+# Relative difference within which two values are the same arithmetic rounded otherwise (sums in
+# another order, an iterative fit carrying that further): measured up to 8e-13 between the default
+# drift fits of an AVX-512 and an AVX2 machine. 1e-9 keeps 9 digits, more than any report shows.
+ROUNDING = 1e-9
+
+
 def _same(a, b) -> bool:
     return a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
+
+
+def _rounding_only(a, b) -> bool:
+    return all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in (a, b)) \
+        and abs(a - b) <= ROUNDING * max(abs(a), abs(b))
 
 
 def _test_train_ratio(scene: str, run: dict) -> float:
@@ -296,8 +312,11 @@ def compare_scene(scene: str, old: dict | None, new: dict | None) -> SceneDiff:
         sa, sb = a[key], b[key]
         bad = _nonfinite(sb["value"]) or any(map(_nonfinite, sb["draws"]))
         pairs = shared_draws(sa, sb) if paired else (shared_draws(sa, sb, shown) if shown else None)
-        if all(_same(x, y) for x, y in zip(sa["draws"], sb["draws"])) and len(sa["draws"]) == len(sb["draws"]):
+        same_count, draws = len(sa["draws"]) == len(sb["draws"]), list(zip(sa["draws"], sb["draws"]))
+        if same_count and all(_same(x, y) for x, y in draws):
             out.rows.append(Row(scene, model, metric, sa["value"], sb["value"], "same", nonfinite=bad))
+        elif same_count and not bad and all(_same(x, y) or _rounding_only(x, y) for x, y in draws):
+            out.rows.append(Row(scene, model, metric, sa["value"], sb["value"], "rounding", "every draw"))
         elif bad:                          # never noise, whatever the interval of the finite draws says
             out.rows.append(Row(scene, model, metric, sa["value"], sb["value"], "non-finite", nonfinite=True))
         elif pairs is not None and len(pairs[0]) >= 2:
@@ -313,7 +332,8 @@ def compare_scene(scene: str, old: dict | None, new: dict | None) -> SceneDiff:
     va, vb = single_values(scene, old["metrics"]), single_values(scene, new["metrics"])
     for path in sorted(set(va) | set(vb)):
         if path in va and path in vb:
-            verdict = "same" if _same(va[path], vb[path]) else "changed"
+            a, b = va[path], vb[path]
+            verdict = "same" if _same(a, b) else ("rounding" if _rounding_only(a, b) else "changed")
         else:
             verdict = "removed" if path not in vb else "added"
         out.rows.append(Row(scene, "", path, va.get(path), vb.get(path), verdict, "single value",
@@ -329,12 +349,13 @@ def failures(diffs: list[SceneDiff], tolerances: dict[str, float]) -> list[Row]:
     """Rows whose metric (its last name: mae, r2, ...) got worse by more than its tolerance, or is
     no longer a number in the new run (NaN, infinite or null, in its mean or any draw: worse than
     any tolerance, and never noise). A scene scored over draws is held to its scores (their
-    means), not to single draws' values."""
+    means), not to single draws' values. A difference in rounding only is no change, even at
+    a tolerance of 0."""
     out = []
     for d in diffs:
         for r in d.rows:
             name = r.metric.rsplit(".", 1)[-1]
-            if (r.how != "single value") != d.scored or name not in tolerances:
+            if (r.how != "single value") != d.scored or name not in tolerances or r.verdict == "rounding":
                 continue
             if r.nonfinite or (not math.isnan(r.worse_by) and r.worse_by > tolerances[name]):
                 out.append(r)
