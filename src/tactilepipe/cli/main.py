@@ -10,6 +10,7 @@ import sys
 import tactilepipe.cli
 from tactilepipe.cli.common import stage_params
 from tactilepipe.cli.registry import add_commands
+from tactilepipe.core import vector_dispatch
 from tactilepipe.core.errors import TactilepipeError
 
 
@@ -54,6 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    vector_dispatch.pin()                     # before any stage loads NumPy or OpenCV: they read it then
     try:
         parser = build_parser()               # declares every study's commands
     except TactilepipeError as exc:

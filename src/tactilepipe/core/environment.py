@@ -10,9 +10,11 @@ from importlib import metadata
 from pathlib import Path
 
 PACKAGES = ("torch", "numpy", "scikit-learn", "pandas")
-# environment variables that choose the code of torch's, oneDNN's and MKL's kernels
+# environment variables that choose the code of torch's, oneDNN's, MKL's, NumPy's, OpenCV's and
+# OpenBLAS's kernels (the last three: core/vector_dispatch.py)
 KERNEL_VARIABLES = ("ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA", "DNNL_MAX_CPU_ISA", "MKL_CBWR",
-                    "MKL_ENABLE_INSTRUCTIONS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+                    "MKL_ENABLE_INSTRUCTIONS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "NPY_DISABLE_CPU_FEATURES",
+                    "OPENCV_CPU_DISABLE", "OPENBLAS_CORETYPE")
 
 
 def environment() -> dict:
@@ -40,22 +42,32 @@ def torch_cpu_capability() -> str | None:
     return torch.backends.cpu.get_cpu_capability()
 
 
-def _cpu() -> dict:
-    """CPU vendor, model (name, family and number: a model name such as "AMD EPYC" covers several
-    generations) and the vector extensions the math libraries choose kernels by (Linux)."""
-    model, flags, fields = platform.processor() or None, set(), {}
+def _cpuinfo() -> tuple[dict[str, str], set[str]]:
+    """The first CPU's fields of /proc/cpuinfo and its flags (both empty where there is none)."""
+    flags, fields = set(), {}
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
             key, _, value = line.partition(":")
             key, value = key.strip(), value.strip()
-            if key == "model name" and value:
-                model = value
-            elif key == "flags":
+            if key == "flags":
                 flags = set(value.split())
-            elif key in ("vendor_id", "cpu family", "model") and key not in fields:
+            elif key not in fields:
                 fields[key] = value
     except OSError:
         pass
+    return fields, flags
+
+
+def cpu_flags() -> set[str]:
+    """The CPU's feature flags under /proc/cpuinfo's names (avx2, fma, avx512f, ...; Linux)."""
+    return _cpuinfo()[1]
+
+
+def _cpu() -> dict:
+    """CPU vendor, model (name, family and number: a model name such as "AMD EPYC" covers several
+    generations) and the vector extensions the math libraries choose kernels by (Linux)."""
+    fields, flags = _cpuinfo()
+    model = fields.get("model name") or platform.processor() or None
     return {"model": model, "vendor": fields.get("vendor_id"), "family": fields.get("cpu family"),
             "model_number": fields.get("model"),
             "vector_extensions": sorted(f for f in flags if f.startswith(("avx", "amx", "fma")))}

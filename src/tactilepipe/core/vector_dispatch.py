@@ -1,0 +1,55 @@
+"""The vector code NumPy, OpenCV and OpenBLAS run: what every x86-64 CPU with AVX2 and FMA runs.
+
+Each of these libraries carries several builds of its hot loops and picks one by the CPU it
+finds: AVX2, or AVX-512 where the CPU has it. The builds sum in other orders and NumPy's AVX-512
+transcendental functions are other approximations, so the same recording gave other bytes on an
+AVX-512 machine than on an AVX2 one. Measured on the smoke build: the simulated ``tool_shear``
+frames differed (its trials are rendered through OpenCV's ``remap``), and OpenCV's ``remap``,
+``GaussianBlur`` and ``Sobel`` on float32 images give other bytes here with their AVX2 code
+switched off than with it (docs/reproducibility.md). ``pin`` caps each library at AVX2 before it
+loads. On the AVX2 machine that made the committed results it changes no library's choice (NumPy
+ran its AVX2 code, OpenBLAS its Haswell kernels), so those results stand.
+
+The choice is read from the environment when each library loads, so the command line calls
+``pin`` first thing, before anything imports NumPy or OpenCV. A value the user set is kept.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+from tactilepipe.core.environment import cpu_flags
+
+# NumPy 2's dispatch targets above AVX2 (x86-64-v3); OpenCV's names of the AVX-512 features it
+# dispatches on; OpenBLAS's AVX2 kernel set (the one it picks itself on AVX2 CPUs, Intel or AMD)
+NUMPY_ABOVE_AVX2 = "X86_V4 AVX512_ICL AVX512_SPR"
+OPENCV_AVX512 = ("AVX512F", "AVX512-COMMON", "AVX512-SKX", "AVX512-CLX", "AVX512-CNL", "AVX512-ICL",
+                 "AVX512-KNL", "AVX512-KNM")
+OPENBLAS_AVX2 = "Haswell"
+VARIABLES = ("NPY_DISABLE_CPU_FEATURES", "OPENCV_CPU_DISABLE", "OPENBLAS_CORETYPE")
+LIBRARIES = ("numpy", "cv2")
+
+
+def pinned_environment(flags: set[str]) -> dict[str, str]:
+    """The variables that cap each library at AVX2 on a CPU with ``flags`` (/proc/cpuinfo's names).
+    None without AVX2 and FMA: the libraries then run older code than other machines, and nothing
+    here can give them the AVX2 results. OpenCV's cap only where AVX-512 is present: elsewhere it
+    prints a warning for each feature it cannot switch off."""
+    if not {"avx2", "fma"} <= flags:
+        return {}
+    env = {"NPY_DISABLE_CPU_FEATURES": NUMPY_ABOVE_AVX2, "OPENBLAS_CORETYPE": OPENBLAS_AVX2}
+    if "avx512f" in flags:
+        env["OPENCV_CPU_DISABLE"] = ",".join(OPENCV_AVX512)
+    return env
+
+
+def pin() -> dict[str, str]:
+    """Set the caps for this process (and the processes it starts) unless the user set them, and
+    return what is in force. Without effect once NumPy or OpenCV is loaded (a caller in a process
+    that already computes, such as a test): nothing is changed then."""
+    if any(name in sys.modules for name in LIBRARIES):
+        return {}
+    for key, value in pinned_environment(cpu_flags()).items():
+        os.environ.setdefault(key, value)
+    return {k: os.environ[k] for k in VARIABLES if k in os.environ}

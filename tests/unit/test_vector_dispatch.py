@@ -1,0 +1,74 @@
+"""NumPy, OpenCV and OpenBLAS capped at AVX2 in every stage process (core/vector_dispatch.py): the
+command line sets the caps before either library loads, and each library honours them."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from tactilepipe.core import vector_dispatch
+from tactilepipe.core.environment import cpu_flags
+
+AVX2 = {"sse4_2", "avx", "avx2", "fma"}
+
+
+def test_the_caps_follow_the_cpu():
+    avx512 = vector_dispatch.pinned_environment(AVX2 | {"avx512f", "avx512bw"})
+    assert avx512 == {"NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR", "OPENBLAS_CORETYPE": "Haswell",
+                      "OPENCV_CPU_DISABLE": ",".join(vector_dispatch.OPENCV_AVX512)}
+    # on an AVX2 machine OpenCV has nothing to switch off (and would warn about each name)
+    assert vector_dispatch.pinned_environment(AVX2) == {k: v for k, v in avx512.items() if k != "OPENCV_CPU_DISABLE"}
+    assert vector_dispatch.pinned_environment({"sse4_2", "avx"}) == {}         # no AVX2 code to pin to
+
+
+def _run(code: str, env: dict | None = None) -> str:
+    env = {k: v for k, v in os.environ.items() if k not in vector_dispatch.VARIABLES} | (env or {})
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout.split()
+
+
+@pytest.mark.skipif(not {"avx2", "fma"} <= cpu_flags(), reason="the caps are for CPUs with AVX2 and FMA")
+def test_the_command_line_sets_the_caps_before_numpy_or_opencv_loads():
+    code = ("import contextlib, io, os, sys\nfrom tactilepipe.cli.main import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):\n    main(['--help'])\n"
+            "print(os.environ['OPENBLAS_CORETYPE'], 'numpy' in sys.modules or 'cv2' in sys.modules)\n"
+            "import numpy, threadpoolctl\nprint([i['architecture'] for i in threadpoolctl.threadpool_info()])")
+    assert _run(code) == ["Haswell", "False", "['Haswell']"]
+    # a value the user set is kept
+    assert _run(code, {"OPENBLAS_CORETYPE": "Sandybridge"})[:2] == ["Sandybridge", "False"]
+
+
+@pytest.mark.skipif(not {"avx2", "fma"} <= cpu_flags(), reason="needs AVX2 code to switch off")
+def test_numpy_and_opencv_honour_a_cap_set_this_way():
+    # the same path with a cap this machine can show (its AVX2 code): each library then runs older
+    # code, and OpenCV's remap gives other bytes, as it would across machines without the cap
+    code = ("import hashlib\nfrom tactilepipe.core import vector_dispatch as v\n"
+            "v.NUMPY_ABOVE_AVX2 = 'X86_V3 X86_V4'\nv.pinned_environment = lambda flags: {"
+            "'NPY_DISABLE_CPU_FEATURES': v.NUMPY_ABOVE_AVX2, 'OPENCV_CPU_DISABLE': 'AVX2,FMA3,AVX'} if CAP else {}\n"
+            "v.pin()\nimport numpy as np, cv2\nfrom numpy._core._multiarray_umath import __cpu_features__ as f\n"
+            "rng = np.random.default_rng(0)\nh = rng.random((60, 80), dtype=np.float32)\n"
+            "m = (np.indices((60, 80))[::-1].astype(np.float32) + rng.standard_normal((2, 60, 80)).astype(np.float32))\n"
+            "out = cv2.remap(h, np.ascontiguousarray(m.transpose(1, 2, 0)), None, cv2.INTER_LINEAR)\n"
+            "print(f['X86_V3'], cv2.checkHardwareSupport(11), hashlib.sha256(out.tobytes()).hexdigest()[:12])")
+    capped, free = _run("CAP = True\n" + code), _run("CAP = False\n" + code)
+    assert capped[:2] == ["False", "False"] and free[:2] == ["True", "True"]
+    assert capped[2] != free[2]
+
+
+@pytest.mark.skipif("avx512f" not in cpu_flags(), reason="only a CPU with AVX-512 has AVX-512 code to switch off")
+def test_on_an_avx512_cpu_a_stage_runs_the_avx2_code():
+    code = ("import contextlib, io\nfrom tactilepipe.cli.main import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):\n    main(['--help'])\n"
+            "import numpy, cv2\nfrom numpy._core._multiarray_umath import __cpu_features__ as f\n"
+            "print(f['X86_V4'], f['X86_V3'], cv2.checkHardwareSupport(13))")     # 13: CV_CPU_AVX_512F
+    assert _run(code) == ["False", "True", "False"]
+
+
+def test_a_process_that_already_computes_is_left_as_it_is(monkeypatch):
+    import numpy  # noqa: F401  (this process has NumPy loaded: a cap now would not take)
+    for key in vector_dispatch.VARIABLES:
+        monkeypatch.delenv(key, raising=False)
+    assert vector_dispatch.pin() == {}
+    assert not any(k in os.environ for k in vector_dispatch.VARIABLES)
