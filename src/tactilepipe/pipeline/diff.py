@@ -101,7 +101,7 @@ class SceneDiff:
             return self.note
         rounded = [r for r in self.rows if r.verdict == "rounding"]
         moved = [r for r in self.rows if r.verdict not in ("same", "rounding")]
-        largest = max((abs(r.change) / max(abs(r.old), abs(r.new)) for r in rounded), default=0.0)
+        largest = max((abs(r.change) / (max(abs(r.old), abs(r.new)) or 1.0) for r in rounded), default=0.0)
         last = f"{len(rounded)} values differ in their last digits only (at most {largest:.1g} relative)" if rounded else ""
         if not moved:
             return f"unchanged but for rounding: {last}" if rounded else "unchanged"
