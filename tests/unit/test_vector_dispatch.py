@@ -15,18 +15,33 @@ from tactilepipe.core.environment import cpu_flags
 AVX2 = {"sse4_2", "avx", "avx2", "fma"}
 
 
+SKYLAKE_X = AVX2 | {"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"}
+ZEN_4 = SKYLAKE_X | {"avx512ifma", "avx512vbmi", "avx512_vnni", "avx512_vbmi2", "avx512_bitalg", "avx512_vpopcntdq",
+                     "avx512_bf16"}
+KNIGHTS_LANDING = AVX2 | {"avx512f", "avx512cd", "avx512er", "avx512pf"}
+
+
 def test_the_caps_follow_the_cpu():
-    avx512 = vector_dispatch.pinned_environment(AVX2 | {"avx512f", "avx512bw"})
+    avx512 = vector_dispatch.pinned_environment(SKYLAKE_X)
     assert avx512 == {"NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR", "OPENBLAS_CORETYPE": "Haswell",
-                      "OPENCV_CPU_DISABLE": ",".join(vector_dispatch.OPENCV_AVX512)}
+                      "OPENCV_CPU_DISABLE": "AVX512F,AVX512-COMMON,AVX512-SKX"}
+    # OpenCV warns at every import about a group the CPU lacks, so each CPU's cap names its own
+    opencv = {name: vector_dispatch.pinned_environment(flags)["OPENCV_CPU_DISABLE"].split(",")
+              for name, flags in (("zen4", ZEN_4), ("knl", KNIGHTS_LANDING))}
+    assert opencv["zen4"] == ["AVX512F", "AVX512-COMMON", "AVX512-SKX", "AVX512-CLX", "AVX512-CNL", "AVX512-ICL"]
+    assert opencv["knl"] == ["AVX512F", "AVX512-COMMON", "AVX512-KNL"]
     # on an AVX2 machine OpenCV has nothing to switch off (and would warn about each name)
     assert vector_dispatch.pinned_environment(AVX2) == {k: v for k, v in avx512.items() if k != "OPENCV_CPU_DISABLE"}
     assert vector_dispatch.pinned_environment({"sse4_2", "avx"}) == {}         # no AVX2 code to pin to
 
 
-def _run(code: str, env: dict | None = None) -> str:
+def _process(code: str, env: dict | None = None) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k not in vector_dispatch.VARIABLES} | (env or {})
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout.split()
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+
+
+def _run(code: str, env: dict | None = None) -> list[str]:
+    return _process(code, env).stdout.split()
 
 
 @pytest.mark.skipif(not {"avx2", "fma"} <= cpu_flags(), reason="the caps are for CPUs with AVX2 and FMA")
@@ -59,11 +74,14 @@ def test_numpy_and_opencv_honour_a_cap_set_this_way():
 
 @pytest.mark.skipif("avx512f" not in cpu_flags(), reason="only a CPU with AVX-512 has AVX-512 code to switch off")
 def test_on_an_avx512_cpu_a_stage_runs_the_avx2_code():
+    # OpenCV's ids: 13 AVX_512F; 256-262 the groups SKX, COMMON, KNL, KNM, CNL, CLX, ICL
     code = ("import contextlib, io\nfrom tactilepipe.cli.main import main\n"
             "with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):\n    main(['--help'])\n"
             "import numpy, cv2\nfrom numpy._core._multiarray_umath import __cpu_features__ as f\n"
-            "print(f['X86_V4'], f['X86_V3'], cv2.checkHardwareSupport(13))")     # 13: CV_CPU_AVX_512F
-    assert _run(code) == ["False", "True", "False"]
+            "print(f['X86_V4'], f['X86_V3'], any(cv2.checkHardwareSupport(i) for i in (13, *range(256, 263))))")
+    proc = _process(code)
+    assert proc.stdout.split() == ["False", "True", "False"]
+    assert proc.stderr == ""             # no warning about a group this CPU lacks, in any stage's log
 
 
 def test_a_process_that_already_computes_is_left_as_it_is(monkeypatch):

@@ -21,12 +21,27 @@ import sys
 
 from tactilepipe.core.environment import cpu_flags
 
-# NumPy 2's dispatch targets above AVX2 (x86-64-v3); OpenCV's names of the AVX-512 features it
-# dispatches on; OpenBLAS's AVX2 kernel set (the one it picks itself on AVX2 CPUs, Intel or AMD)
+# NumPy 2's dispatch targets above AVX2 (x86-64-v3); OpenBLAS's AVX2 kernel set (the one it picks
+# itself on AVX2 CPUs, Intel or AMD)
 NUMPY_ABOVE_AVX2 = "X86_V4 AVX512_ICL AVX512_SPR"
-OPENCV_AVX512 = ("AVX512F", "AVX512-COMMON", "AVX512-SKX", "AVX512-CLX", "AVX512-CNL", "AVX512-ICL",
-                 "AVX512-KNL", "AVX512-KNM")
 OPENBLAS_AVX2 = "Haswell"
+# OpenCV's names of the AVX-512 feature groups it dispatches on, each with the /proc/cpuinfo flags
+# the group needs. OpenCV prints a warning for every name the CPU lacks, at every import (the
+# Xeon Phi groups KNL and KNM on every other CPU), so only the groups the CPU has are named.
+_AVX512_COMMON = {"avx512f", "avx512cd"}
+_AVX512_SKX = _AVX512_COMMON | {"avx512bw", "avx512dq", "avx512vl"}
+_AVX512_KNL = _AVX512_COMMON | {"avx512er", "avx512pf"}
+OPENCV_AVX512 = {
+    "AVX512F": {"avx512f"},
+    "AVX512-COMMON": _AVX512_COMMON,
+    "AVX512-SKX": _AVX512_SKX,
+    "AVX512-CLX": _AVX512_SKX | {"avx512_vnni"},
+    "AVX512-CNL": _AVX512_SKX | {"avx512ifma", "avx512vbmi"},
+    "AVX512-ICL": _AVX512_SKX | {"avx512ifma", "avx512vbmi", "avx512_vnni", "avx512_vbmi2", "avx512_bitalg",
+                                 "avx512_vpopcntdq"},
+    "AVX512-KNL": _AVX512_KNL,
+    "AVX512-KNM": _AVX512_KNL | {"avx512_4fmaps", "avx512_4vnniw", "avx512_vpopcntdq"},
+}
 VARIABLES = ("NPY_DISABLE_CPU_FEATURES", "OPENCV_CPU_DISABLE", "OPENBLAS_CORETYPE")
 LIBRARIES = ("numpy", "cv2")
 
@@ -34,13 +49,14 @@ LIBRARIES = ("numpy", "cv2")
 def pinned_environment(flags: set[str]) -> dict[str, str]:
     """The variables that cap each library at AVX2 on a CPU with ``flags`` (/proc/cpuinfo's names).
     None without AVX2 and FMA: the libraries then run older code than other machines, and nothing
-    here can give them the AVX2 results. OpenCV's cap only where AVX-512 is present: elsewhere it
-    prints a warning for each feature it cannot switch off."""
+    here can give them the AVX2 results. OpenCV's cap names the AVX-512 groups the CPU has, and
+    is left out where it has none."""
     if not {"avx2", "fma"} <= flags:
         return {}
     env = {"NPY_DISABLE_CPU_FEATURES": NUMPY_ABOVE_AVX2, "OPENBLAS_CORETYPE": OPENBLAS_AVX2}
-    if "avx512f" in flags:
-        env["OPENCV_CPU_DISABLE"] = ",".join(OPENCV_AVX512)
+    opencv = [name for name, needs in OPENCV_AVX512.items() if needs <= flags]
+    if opencv:
+        env["OPENCV_CPU_DISABLE"] = ",".join(opencv)
     return env
 
 
