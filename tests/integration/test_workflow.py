@@ -269,6 +269,7 @@ def test_each_scale_keeps_its_own_results_and_a_round_trip_reruns_nothing(smoke_
         run(["git", *cmd], wd)
     tracked = run(["git", "ls-files", "results"], wd).stdout.split()
     assert f"{SMOKE}/volume/metrics.json" in tracked and f"{SMOKE}/params/volume-report.json" in tracked
+    assert f"{SMOKE}/params/tool-train/full.json" in tracked          # a training job's own stamp too
     before = (results(wd) / "volume/metrics.json").read_bytes()
     volume = ["--config", "scenes=[volume]"]
 
