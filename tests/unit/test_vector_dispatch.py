@@ -19,6 +19,15 @@ SKYLAKE_X = AVX2 | {"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"}
 ZEN_4 = SKYLAKE_X | {"avx512ifma", "avx512vbmi", "avx512_vnni", "avx512_vbmi2", "avx512_bitalg", "avx512_vpopcntdq",
                      "avx512_bf16"}
 KNIGHTS_LANDING = AVX2 | {"avx512f", "avx512cd", "avx512er", "avx512pf"}
+CPUS = {  # /proc/cpuinfo's AVX-512 flags of each generation -> the OpenCV groups it has
+    "skylake_x": (SKYLAKE_X, ["AVX512F", "AVX512-COMMON", "AVX512-SKX"]),
+    "cascade_lake": (SKYLAKE_X | {"avx512_vnni"}, ["AVX512F", "AVX512-COMMON", "AVX512-SKX", "AVX512-CLX"]),
+    "cannon_lake": (SKYLAKE_X | {"avx512ifma", "avx512vbmi"}, ["AVX512F", "AVX512-COMMON", "AVX512-SKX", "AVX512-CNL"]),
+    "zen4": (ZEN_4, ["AVX512F", "AVX512-COMMON", "AVX512-SKX", "AVX512-CLX", "AVX512-CNL", "AVX512-ICL"]),
+    "knights_landing": (KNIGHTS_LANDING, ["AVX512F", "AVX512-COMMON", "AVX512-KNL"]),
+    "knights_mill": (KNIGHTS_LANDING | {"avx512_4fmaps", "avx512_4vnniw", "avx512_vpopcntdq"},
+                     ["AVX512F", "AVX512-COMMON", "AVX512-KNL", "AVX512-KNM"]),
+}
 
 
 def test_the_caps_follow_the_cpu():
@@ -27,9 +36,8 @@ def test_the_caps_follow_the_cpu():
                       "OPENCV_CPU_DISABLE": "AVX512F,AVX512-COMMON,AVX512-SKX"}
     # OpenCV warns at every import about a group the CPU lacks, so each CPU's cap names its own
     opencv = {name: vector_dispatch.pinned_environment(flags)["OPENCV_CPU_DISABLE"].split(",")
-              for name, flags in (("zen4", ZEN_4), ("knl", KNIGHTS_LANDING))}
-    assert opencv["zen4"] == ["AVX512F", "AVX512-COMMON", "AVX512-SKX", "AVX512-CLX", "AVX512-CNL", "AVX512-ICL"]
-    assert opencv["knl"] == ["AVX512F", "AVX512-COMMON", "AVX512-KNL"]
+              for name, (flags, _) in CPUS.items()}
+    assert opencv == {name: groups for name, (_, groups) in CPUS.items()}
     # on an AVX2 machine OpenCV has nothing to switch off (and would warn about each name)
     assert vector_dispatch.pinned_environment(AVX2) == {k: v for k, v in avx512.items() if k != "OPENCV_CPU_DISABLE"}
     assert vector_dispatch.pinned_environment({"sse4_2", "avx"}) == {}         # no AVX2 code to pin to
