@@ -113,16 +113,22 @@ def test_a_camera_frozen_during_a_press_is_refused(tmp_path):
         shift_of(make_raw(stall), tmp_path)
 
 
-def test_a_flat_force_log_is_refused(tmp_path):
-    with pytest.raises(InputError, match=r"^lab/t: the force log is flat"):
-        shift_of(make_raw(force=lambda t: 0 * t + 0.1), tmp_path)
+def test_a_flat_force_log_leaves_the_trial_out_naming_why_or_is_refused_as_configured(tmp_path):
+    """A trial left out never stops the build (a light press is lab data); on_low_score: refuse refuses it."""
+    info = ingest_trial(make_raw(force=lambda t: 0 * t + 0.1), tmp_path / "s.parquet", SIZE, INGEST)
+    assert info["clock"]["dropped"].startswith("clock not aligned: the force log is flat"), info["clock"]
+    refuse = copy.deepcopy(INGEST)
+    refuse["clock"]["on_low_score"] = "refuse"
+    with pytest.raises(InputError, match=r"^lab/t: cannot align the force clock to the cameras: the force log is flat"):
+        shift_of(make_raw(force=lambda t: 0 * t + 0.1), tmp_path, refuse)
 
 
-def test_an_offset_on_the_edge_of_the_window_is_refused(tmp_path):
+def test_an_offset_on_the_edge_of_the_window_leaves_the_trial_out(tmp_path):
     ingest = copy.deepcopy(INGEST)
     ingest["max_offset_s"] = 0.2                      # the true offset (0.31 s) lies beyond
-    with pytest.raises(InputError, match=r"on the edge of the search window"):
-        shift_of(make_raw(), tmp_path, ingest)
+    info = ingest_trial(make_raw(), tmp_path / "s.parquet", SIZE, ingest)
+    assert "on the edge of the search window" in info["clock"]["dropped"], info["clock"]
+    assert info["clock"]["refined_shift_s"] == 0.0
 
 
 def _unrelated(name, imgs, stamps):

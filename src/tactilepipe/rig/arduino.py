@@ -60,7 +60,7 @@ class SerialStats:
 class ArduinoReader(DeviceReader):
     """Opens ``port`` (stamping ``# start_host_ns``), then copies its lines to ``log`` on a thread."""
 
-    def __init__(self, port: str, log: BinaryIO, baud: int = BAUD):
+    def __init__(self, port: str, log: BinaryIO, baud: int = BAUD, arrival: BinaryIO | None = None):
         import serial                                   # pyserial: only the recorder needs it
         self._serial_error = serial.SerialException
         try:
@@ -70,6 +70,11 @@ class ArduinoReader(DeviceReader):
         self.stats = SerialStats(start_host_ns=time.time_ns())
         self._log = log
         self._log.write(f"# start_host_ns={self.stats.start_host_ns}\n".encode())
+        # each line's arrival on the host clock, by its force.log line number: the Arduino's clock is
+        # fitted to these (tool/formats/arrival_log.py), the port-open time is only a coarse start
+        self._arrival, self._arrived_ns = arrival, 0
+        if arrival is not None:
+            arrival.write(b"line,host_ns\n")
         self.port = port
         self._init_thread("arduino")
 
@@ -97,6 +102,7 @@ class ArduinoReader(DeviceReader):
             now = time.monotonic()
             if chunk:
                 last = now
+                self._arrived_ns = time.time_ns()
             elif now - last > SILENT_AFTER_S:
                 self.stats.stalls += 1
                 last = now
@@ -137,6 +143,8 @@ class ArduinoReader(DeviceReader):
             self.stats.line_ends[end] += 1
         self._log.write(line)
         self.stats.lines += 1
+        if self._arrival is not None:               # force.log's line 1 is the header
+            self._arrival.write(f"{self.stats.lines + 1},{self._arrived_ns}\n".encode())
         text = line.decode("ascii", errors="replace").removesuffix("\n").removesuffix("\r")
         parsed = parse_line(text)
         if isinstance(parsed, str):

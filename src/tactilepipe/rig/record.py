@@ -2,7 +2,7 @@
 
 One trial: the serial port is opened first (its open time is force.log's ``# start_host_ns``),
 then both cameras; every frame is written as a PNG with its host time in frames.csv, every serial
-line into force.log as received; after ``seconds`` the devices are closed and meta.json is
+line into force.log as received and its arrival time into force_arrival.csv; after ``seconds`` the devices are closed and meta.json is
 written. The layout is in tool/formats/native_layout.py and docs/rig.md.
 
 The trial is written in a staging folder beside the sessions (``<root>/.recording/<session>/``)
@@ -31,6 +31,7 @@ import numpy as np
 from tactilepipe.core.atomic import write_text
 from tactilepipe.core.errors import ArgumentError, InputError, TactilepipeError
 from tactilepipe.rig.arduino import BAUD, ArduinoReader
+from tactilepipe.tool.formats.arrival_log import ARRIVAL_NAME
 from tactilepipe.rig.cameras import MODES, Camera
 from tactilepipe.rig.reader import STOP_TIMEOUT_S
 from tactilepipe.tool.formats.native_layout import (FRAME_NAME, SENSORS, TrialMeta, check_tool_name,
@@ -151,8 +152,9 @@ def record_trial(session_dir: str | Path, meta: TrialMeta, devices: Devices, sec
     writer = _FrameWriter(staging)
     cameras, reader, reason, setup_error = [], None, "", None
     log = open(staging / "force.log", "wb")
+    arrival = open(staging / ARRIVAL_NAME, "wb")
     try:
-        reader = ArduinoReader(devices.port, log, devices.baud).start()
+        reader = ArduinoReader(devices.port, log, devices.baud, arrival).start()
         _first_sample(reader)           # the Arduino is up: every frame will lie within the force log
         for sensor, source in zip(SENSORS, (devices.left, devices.right)):
             cameras.append(Camera(sensor, source, devices.mode,
@@ -175,6 +177,7 @@ def record_trial(session_dir: str | Path, meta: TrialMeta, devices: Devices, sec
             reason = (f"{reason}; " if reason else "") + f"the reader thread of {' and '.join(stuck)} did not stop " \
                                                          f"within {STOP_TIMEOUT_S:g} s (left behind)"
         log.close()
+        arrival.close()
         try:
             writer.close()
         except BaseException as exc:                # noqa: BLE001 - the trial is set aside, with why

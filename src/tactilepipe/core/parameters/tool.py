@@ -23,6 +23,8 @@ class ClockSync(Group):
     max_finger_disagreement_s: PositiveFloat
     on_low_score: Literal["refuse", "host_clock", "drop"]
     min_force_range_n: PositiveFloat
+    max_camera_latency_s: PositiveFloat = Field(description="arrival-stamped trials: window (s, either way) in "
+                                                            "which the images' lag behind the force is sought")
 
 
 class IngestWitness(Group):
@@ -38,7 +40,11 @@ class IngestWitness(Group):
     loaded_n: float = Field(gt=0, le=100, description="N: |F| from which a label counts as loaded (direction)")
     min_normal_share: float = Field(ge=0, le=1, description="median share of |F| that Fz carries while loaded")
     min_image_score: float = Field(ge=-1, le=1, description="correlation of tactile change and |F| at the labels' "
-                                                            "clock (refined or recorded clocks only)")
+                                                            "clock (refined or arrival-stamped clocks only)")
+    max_brightness_step_dn: float = Field(gt=0, le=255, description="gray levels a frame's mean brightness may "
+                                                                    "change from one frame to the next")
+    min_image_snr: float = Field(ge=0, le=1000, description="the images judge the labels where their change over "
+                                                            "the trial is this many times its frame-to-frame noise")
 
 
 class SessionWitness(Group):
@@ -51,6 +57,8 @@ class SessionWitness(Group):
     offset_floor_n: float = Field(gt=0, le=100, description="N: floor of the spread of Fz at rest (both ends)")
     lag_floor_s: float = Field(gt=0, le=10, description="s: floor of the spread of the fingers' lag difference")
     rate_floor: float = Field(gt=0, le=1, description="floor of the spread of log frame rate")
+    max_lag_error_s: float = Field(gt=0, le=10, description="s: an arrival-stamped trial's image lag may lie this "
+                                                          "far from its session's camera latency")
 
 
 class RosTopics(Group):

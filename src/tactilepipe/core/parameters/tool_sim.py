@@ -2,7 +2,7 @@
 
 from typing import Literal
 
-from pydantic import Field, NonNegativeFloat
+from pydantic import Field, NonNegativeFloat, PositiveFloat
 
 from tactilepipe.core.parameters.base import Group, Pair, Triple, UniqueList
 
@@ -78,6 +78,16 @@ class Slide(Group):
     slide_v0_mm_s: float
 
 
+class SerialUsb(Group):
+    """How the Arduino's lines reach the host (the recorder stamps each on arrival)."""
+
+    baud: PositiveFloat
+    poll_ms: NonNegativeFloat
+    delay_ms: NonNegativeFloat
+    hiccup_rate: float = Field(ge=0, le=1)
+    hiccup_ms: Pair[NonNegativeFloat]
+
+
 class Nano17(Group):
     """The F/T sensor under the tip and its Arduino logger."""
 
@@ -93,6 +103,7 @@ class Nano17(Group):
     adc_noise_counts: float
     gauge_bias_counts: float
     gauge_bias_drift_counts: float
+    usb: SerialUsb
 
 
 class Nano17Calibration(Group):

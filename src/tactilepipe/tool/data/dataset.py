@@ -36,6 +36,7 @@ from tactilepipe.tool.data.ingest import read_shard_info
 from tactilepipe.tool.formats.native_layout import frame_orientation
 from tactilepipe.tool.formats.raw import SENSORS
 from tactilepipe.tool.data.sync import interpolate_at, pair_frames
+from tactilepipe.tool.data.session_clock import camera_latency, lag_outlier, shift_ns
 from tactilepipe.tool.data.witness import session_outliers
 
 LOADED_START_N = 1.0             # N: a normal force this far below zero (5th percentile) means a loaded zero
@@ -72,7 +73,7 @@ def pair_step(frame_period_ns: float, pair_rate_hz: float) -> int:
     return max(1, int(round(1e9 / pair_rate_hz / frame_period_ns)))
 
 
-def load_trial(shard: Path, info: dict, sync: dict) -> dict:
+def load_trial(shard: Path, info: dict, sync: dict, force_shift_ns: int = 0) -> dict:
     table = pq.read_table(shard).to_pandas()
     frames = table[table["row"] == "frame"]
     force = table[table["row"] == "force"]
@@ -88,7 +89,7 @@ def load_trial(shard: Path, info: dict, sync: dict) -> dict:
     step = pair_step(period, sync["pair_rate_hz"])        # thinned by design: not a drop
     il, ir = il[::step], ir[::step]
     t_ns = (left[il] + right[ir]) // 2
-    f_t = force["t_ns"].to_numpy()
+    f_t = force["t_ns"].to_numpy() + force_shift_ns       # the camera's latency (tool/data/session_clock.py)
     order = np.argsort(f_t)
     values, ok = interpolate_at(t_ns.astype(np.float64), f_t[order].astype(np.float64),
                                 force[["fx", "fy", "fz"]].to_numpy()[order], sync["max_gap_s"] * 1e9)
@@ -118,8 +119,10 @@ def bad_zero(force: np.ndarray, normal_sign: float) -> str | None:
 
 def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict) -> dict:
     trials, dropped, seen = [], [], []
-    for shard in shards:
-        info = read_shard_info(shard)
+    infos = {Path(shard): read_shard_info(shard) for shard in shards}
+    # the camera's latency is the rig's, whatever the trial's kind: every trial of the session tells it
+    latencies = camera_latency(list(infos.values()))
+    for shard, info in infos.items():
         if info["kind"] != kind:
             continue
         seen.append(info)
@@ -131,7 +134,11 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
         if info["clock"].get("dropped"):          # ingest could not trust its labels' clock
             dropped.append({"trial": info["trial"], "source": info["source"], "reason": info["clock"]["dropped"]})
             continue
-        trials.append(load_trial(Path(shard), info, sync))
+        wrong_clock = lag_outlier(info, latencies, sync["witness"]["max_lag_error_s"]) if "witness" in sync else None
+        if wrong_clock:
+            dropped.append({"trial": info["trial"], "source": info["source"], "reason": wrong_clock})
+            continue
+        trials.append(load_trial(shard, info, sync, shift_ns(info, latencies)))
     # frames of every trial are squashed to a square: portrait and landscape trials would put the
     # same contact at different places, so a dataset keeps one orientation
     shapes = {t["info"]["source"]: orientation(t["info"]) for t in trials}
@@ -208,5 +215,5 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
         samples["insertion_mm"].round(1).astype(str) + "mm"
     write_parquet(out_dir / "samples.parquet", samples)
     write_json(out_dir / "qc.json", {"kind": kind, "trials": qc, "pairs": int(n), "image_size": size,
-                                     "dropped_trials": dropped})
+                                     "camera_latency": latencies, "dropped_trials": dropped})
     return {"trials": qc, "pairs": n}

@@ -9,6 +9,7 @@ while the force changed is refused whatever the layout.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import sys
 from pathlib import Path
@@ -62,17 +63,22 @@ FROZEN_RUN = 3
 # presses stay under about 25 N) is no reading of this rig: a garbled value, another unit. It is
 # left out of the force rows and counted, never turned into a label.
 PLAUSIBLE_FORCE_N = 2.0 * RATED_RANGE[:3]
+REPEATED = "frame repeats the one before byte for byte (a re-delivered buffer)"
 BEYOND_RANGE = "force beyond twice the Nano17's rated range"
 
 
-def _decode_sensor(frames, size: int, name: str) -> tuple[list[bytes], np.ndarray, list[int]]:
-    """PNG bytes of every preprocessed frame, the frames themselves (n, size, size) and the
-    recorded frame size [width, height]."""
+def _decode_sensor(frames, size: int, name: str) -> tuple[list[bytes], np.ndarray, list[int], np.ndarray]:
+    """PNG bytes of every preprocessed frame, the frames themselves (n, size, size), the recorded
+    frame size [width, height], and which frames repeat the one before byte for byte (as recorded:
+    a real sensor's noise never repeats an exposure, so such a frame is a re-delivered buffer)."""
     pngs, grays = [], np.zeros((len(frames), size, size), np.uint8)
-    first_shape = None
+    repeats = np.zeros(len(frames), bool)
+    first_shape, last = None, None
     for i in range(len(frames)):
         bgr = frames.load(i)
         check_frame(bgr, first_shape, frames.source[i], name)
+        digest = hashlib.blake2b(bgr.tobytes(), digest_size=16).digest()
+        repeats[i], last = digest == last, digest
         first_shape = bgr.shape
         img = preprocess(bgr, size)
         check_exposure(img, frames.source[i], name)
@@ -81,7 +87,25 @@ def _decode_sensor(frames, size: int, name: str) -> tuple[list[bytes], np.ndarra
         if not ok:
             raise InputError(frames.source[i], f"{name}: cannot PNG-encode the preprocessed frame")
         pngs.append(buf.tobytes())
-    return pngs, grays, [int(first_shape[1]), int(first_shape[0])]
+    return pngs, grays, [int(first_shape[1]), int(first_shape[0])], repeats
+
+
+def _image_fit(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.ndarray, search: float, clock: dict):
+    """The lag at which |F| best explains what both fingers see, and why it cannot be trusted (None
+    when it can): a flat force log, a peak on the edge of the window, a low or split score."""
+    mag = np.linalg.norm(force, axis=1)
+    spread = float(mag.max() - mag.min())
+    ref = next(iter(raw.frames.values())).host_ns[0]
+    fingers = {n: ((f.host_ns - ref) / 1e9, change_signal(grays[n])) for n, f in raw.frames.items()}
+    fit = fit_offset(fingers, (force_ns - ref) / 1e9, mag, search)
+    if spread < clock["min_force_range_n"]:
+        return fit, (f"the force log is flat (|F| varies by {spread:.3f} N < tool_ingest.clock.min_force_range_n "
+                     f"{clock['min_force_range_n']} N): no press to align on")
+    if fit.on_edge:
+        return fit, (f"the best lag ({fit.shift_s:+.3f} s, correlation {fit.score:.2f}) is on the edge of the "
+                     f"search window +-{search} s: the true lag may lie beyond it, or the images do not follow "
+                     f"the force")
+    return fit, judge(fit, clock, search)
 
 
 def _refine_clock(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.ndarray, ingest: dict
@@ -89,29 +113,8 @@ def _refine_clock(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.nd
     """Shift (ns) to add to the coarse force times, and the clock record; InputError when the
     offset cannot be found and the parameters say to refuse."""
     clock, search = ingest["clock"], ingest["max_offset_s"]
-    mag = np.linalg.norm(force, axis=1)
-    spread = float(mag.max() - mag.min())
-    if spread < clock["min_force_range_n"]:
-        raise InputError(raw.source, f"the force log is flat (|F| varies by {spread:.3f} N < "
-                                     f"tool_ingest.clock.min_force_range_n {clock['min_force_range_n']} N): nothing "
-                                     f"to align the Arduino clock on (Nano17 unplugged, or no press?)")
-    ref = next(iter(raw.frames.values())).host_ns[0]
-    fingers = {n: ((f.host_ns - ref) / 1e9, change_signal(grays[n])) for n, f in raw.frames.items()}
-    fit = fit_offset(fingers, (force_ns - ref) / 1e9, mag, search)
+    fit, why = _image_fit(raw, grays, force_ns, force, search, clock)
     record = fit.record()
-    if fit.on_edge:
-        raise InputError(raw.source, f"the clock offset found ({fit.shift_s:+.3f} s, correlation {fit.score:.2f}) is on "
-                                     f"the edge of the search window +-{search} s: the true offset may lie beyond "
-                                     f"it (tool_ingest.max_offset_s), or the images do not follow the force")
-    why = judge(fit, clock, search)
-    if raw.clock.get("recorded") and clock["on_low_score"] != "refuse":
-        # a trial `tactilepipe record` wrote: its port-open stamp puts the Arduino's clock within a
-        # frame of the cameras' (docs/rig.md); the image fit, rejected on short trials and frames off
-        # where accepted, is kept as evidence only
-        record.update({"image_shift_s": record["refined_shift_s"], "refined_shift_s": 0.0,
-                       "port_open": "recorded trial: the recorder's port-open clock is kept"
-                                    + (f" (image fit not usable: {why})" if why else "")})
-        return 0, record
     if why is None:
         return int(round(fit.shift_s * 1e9)), record
     if clock["on_low_score"] == "refuse":
@@ -125,6 +128,15 @@ def _refine_clock(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.nd
     print(f"warning: {raw.source}: force clock not refined, host clock kept: {why}", file=sys.stderr)
     record.update({"refined_shift_s": 0.0, "fallback": f"host clock: {why}"})
     return 0, record
+
+
+def _image_lag(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.ndarray, ingest: dict) -> dict:
+    """A force clock from arrival stamps is not moved: the images' own best lag is kept as evidence
+    (the camera's exposure-to-stamp latency, pooled over the session at the dataset stage, and the
+    witness of this trial's clock), with why it cannot be used where it cannot."""
+    clock = ingest["clock"]
+    fit, why = _image_fit(raw, grays, force_ns, force, clock["max_camera_latency_s"], clock)
+    return {**fit.record(), "usable": why is None, **({"unusable": why} if why else {})}
 
 
 def _check_frozen(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.ndarray, limit_n: float,
@@ -238,17 +250,26 @@ def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, ingest: dict
         shift_ns, record = _refine_clock(raw, grays, force_ns, force, ingest)
         force_ns = force_ns + shift_ns
         clock.update(record)
+    elif clock.get("method") == "serial_arrival":
+        _check_frozen(raw, grays, force_ns, force, ingest["clock"]["min_force_range_n"], whole_only=True)
+        clock["images"] = _image_lag(raw, grays, force_ns, force, ingest)
     _check_frozen(raw, grays, force_ns, force, ingest["clock"]["min_force_range_n"])
     if witness is not None:
-        trusted = bool(clock.get("refine")) and not clock.get("fallback") and not clock.get("dropped")
+        trusted = (bool(clock.get("refine")) or clock.get("method") == "serial_arrival") \
+            and not clock.get("fallback") and not clock.get("dropped")
         label_witness(witness, raw.evidence, raw.frames, grays, force_ns, force, trusted, ingest["witness"])
         for name, why in witness["failed"].items():
             print(f"warning: {raw.source}: left out of the dataset, witness '{name}': {why}", file=sys.stderr)
     rows_sensor, rows_t, rows_png = [], [], []
-    for name, (pngs, _, _) in decoded.items():
-        rows_sensor += [name] * len(pngs)
-        rows_t.append(raw.frames[name].host_ns.astype(np.int64))
-        rows_png += pngs
+    for name, (pngs, _, _, repeats) in decoded.items():
+        # a repeated frame shows the moment before its stamp: left out, counted (a run of them
+        # while the force moved was refused above as a frozen camera)
+        if repeats.any():
+            drops[f"{name}: {REPEATED}"] = int(repeats.sum())
+        keep = np.flatnonzero(~repeats)
+        rows_sensor += [name] * len(keep)
+        rows_t.append(raw.frames[name].host_ns[keep].astype(np.int64))
+        rows_png += [pngs[i] for i in keep]
     n_frames, n_force = len(rows_png), len(force_ns)
     refs = _reference_rows(raw, image_size)            # "reference" rows: a stored zero-force frame per sensor
     rows_sensor += [name for name, _ in refs]

@@ -17,10 +17,16 @@ tolerances in tool_ingest.witness):
   mid-press reads a load at its end only).
 - direction: while loaded, Fz carries most of |F| in both kinds of trial (a press, or a slide
   under a normal load with friction below 1): Fx/Fz swapped in nano17.cal leave Fz near 0.
+- gauge wire: when the direction is wrong and the gauge a press moves most (from the
+  calibration) stays within a few counts, its wire is open: named as such.
+- exposure: a frame's mean brightness does not jump between frames (contact shades the gel
+  locally; an exposure or LED step moves the whole frame).
 - images: the tactile change from the reference frame follows |F| at the labels' clock
-  (correlation), with a gain (force per unit change) and an offset (force at zero change) that
-  the session comparison (``session_outliers``, at the dataset stage) holds against the other
-  trials of the session.
+  (correlation; judged where the images change ``min_image_snr`` times their noise: a light press
+  or a stiff gel barely moves them), with a gain (force per unit change) and an offset (force at zero change)
+  that the session comparison (``session_outliers``, at the dataset stage) holds against the
+  other trials of the session. A declared rate is compared with the trial's own stamps, and
+  across the session as the ratio of the two, so a session may mix camera rates.
 
 A failure is a short sentence with the numbers; the dataset leaves the trial out with it (qc.json
 ``dropped_trials``), never silently.
@@ -30,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tactilepipe.tool.data.clock_sync import change_signal
+from tactilepipe.tool.data.clock_sync import REFERENCE_FRAMES, change_signal
 
 ADC_MID = 511.5                      # counts at 2.5 V on a 10-bit, 5-V ADC (0..1023)
 
@@ -59,6 +65,45 @@ def _image_fit(change: np.ndarray, mag: np.ndarray) -> tuple[float, float]:
     return r, gain
 
 
+def image_snr(grays: np.ndarray) -> float:
+    """How clearly a finger's images change over the trial: the 5-95 % range of its change from the
+    reference over the frame-to-frame noise of that change (1.4826 MAD of the differences / sqrt 2)."""
+    g = np.asarray(grays, np.float32)
+    if len(g) < 5:
+        return 0.0
+    change = np.abs(g - np.median(g[:REFERENCE_FRAMES], axis=0)).mean(axis=(1, 2))
+    d = np.diff(change)
+    noise = 1.4826 * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(2)
+    return float(np.subtract(*np.percentile(change, [95, 5]))) / max(noise, 1e-6)
+
+
+FLAT_GAUGE_COUNTS = 4.0                # 1st-99th percentile range of a channel that only sees ADC noise (0.6 counts)
+
+
+def _flat_press_gauge(evidence: dict) -> tuple[int, float] | None:
+    """(channel, range in counts) of the gauge a press moves most when it stays flat, else None."""
+    ranges, channel = evidence.get("gauge_range_counts"), evidence.get("press_gauge")
+    if ranges is None or channel is None or ranges[channel] > FLAT_GAUGE_COUNTS:
+        return None
+    return int(channel), float(ranges[channel])
+
+
+def brightness_steps(grays: dict) -> dict[str, tuple[int, float]]:
+    """Per finger, the largest change of a frame's mean brightness from one frame to the next (the
+    frame before it, and the signed change in gray levels). Contact shades the gel locally, some
+    parts brighter, some darker: the mean moves by a level or two; an exposure or LED step moves
+    the whole frame."""
+    out = {}
+    for name, g in grays.items():
+        if len(g) < 2:
+            continue
+        mean = np.asarray(g, np.float64).mean(axis=(1, 2))
+        d = np.diff(mean)
+        i = int(np.argmax(np.abs(d)))
+        out[name] = (i, float(d[i]))
+    return out
+
+
 def chain_witness(evidence: dict, frames: dict, tol: dict) -> dict:
     """The witnesses that need no label: unloaded ADC counts and declared rates. Judged before the
     clock is refined, which a wrong rate would send astray (its error would name the clock).
@@ -80,6 +125,7 @@ def chain_witness(evidence: dict, frames: dict, tol: dict) -> dict:
     fps = {name: _fps(f.host_ns) for name, f in frames.items()}
     metrics["fps"] = {k: round(v, 3) for k, v in fps.items() if v}
     declared = evidence.get("declared_fps")
+    metrics["declared_fps"] = declared
     off = {k: v for k, v in fps.items() if _ratio_off(v, declared, tol["rate_rel"])}
     if off:
         failed["declared frame rate"] = (
@@ -137,16 +183,35 @@ def label_witness(witness: dict, evidence: dict, frames: dict, grays: dict, forc
     if loaded.sum() >= 3:
         share = float(np.median(np.abs(vec[loaded, 2]) / mag[loaded]))
         metrics["normal_share"] = round(share, 4)
-        if share < tol["min_normal_share"]:
+        flat = _flat_press_gauge(evidence)
+        if share < tol["min_normal_share"] and flat:
+            failed["gauge wire"] = (
+                f"while loaded (|F| up to {mag.max():.1f} N) Fz carries a median {share:.0%} of |F|, and gauge channel "
+                f"{flat[0]}, the one a press moves most (nano17.cal), stays within {flat[1]:.0f} counts over the trial: "
+                f"its wire is open or its amplifier dead")
+        elif share < tol["min_normal_share"]:
             failed["force direction"] = (
                 f"while loaded (|F| up to {mag.max():.1f} N) Fz carries a median {share:.0%} of |F| (at least "
                 f"{tol['min_normal_share']:.0%}: tool_ingest.witness.min_normal_share): a press and a slide load the "
                 f"tip along the Nano17's z axis; the axes of nano17.cal are swapped or the sensor is mounted sideways")
+    steps = brightness_steps(grays)
+    metrics["brightness_step_dn"] = {k: round(v[1], 2) for k, v in steps.items()}
+    jumped = {k: v for k, v in steps.items() if v[1] > tol["max_brightness_step_dn"]}
+    if jumped:
+        failed["exposure"] = "; ".join(
+            f"{k}'s mean brightness jumps by {v:+.1f} gray levels from frame {i} to {i + 1}" for k, (i, v) in
+            jumped.items()) + (f" (at most tool_ingest.witness.max_brightness_step_dn {tol['max_brightness_step_dn']:g}; "
+                               f"contact moves it under 3): an exposure or LED change, which the images would "
+                               f"show the model as a change of force")
     fits = {name: _image_fit(change_signal(grays[name]), np.linalg.norm(at[name], axis=1)) for name in frames}
     r, gain = (float(np.nanmean([f[i] for f in fits.values()])) if any(np.isfinite(f[i]) for f in fits.values())
                else float("nan") for i in range(2))
     metrics.update({"image_score": round(r, 4), "image_gain": round(gain, 4), "clock_trusted": clock_trusted})
-    if clock_trusted and np.isfinite(r) and r < tol["min_image_score"]:
+    # a light press, or a stiff gel, barely moves the images (not above their noise at a small stored
+    # size): they cannot judge its labels, which then rest on the clock alone
+    snr = max(image_snr(grays[name]) for name in frames)
+    metrics["image_snr"] = round(snr, 2)
+    if clock_trusted and snr >= tol["min_image_snr"] and np.isfinite(r) and r < tol["min_image_score"]:
         failed["images"] = (
             f"the tactile change follows |F| with correlation {r:.2f} at the labels' clock (at least "
             f"{tol['min_image_score']:g}: tool_ingest.witness.min_image_score): the labels are not of these frames "
@@ -166,10 +231,13 @@ def _values(info: dict) -> dict:
         a, b = fingers.values()
         lag = float(a) - float(b)
     fps = list((m.get("fps") or {}).values())
+    # a session may mix camera rates, each declared in its meta.json: the rate compared is the stamps'
+    # against the trial's own declaration (a camera whose clock runs off stands out among them)
+    declared = m.get("declared_fps") or 1.0
     trusted = m.get("clock_trusted")
     return {"gain": float(np.log(gain)) if trusted and gain and gain > 0 else None,
             "offset": m.get("rest_fz_n"),
-            "lag": lag, "rate": float(np.log(np.mean(fps))) if fps else None}
+            "lag": lag, "rate": float(np.log(np.mean(fps) / declared)) if fps else None}
 
 
 def session_outliers(infos: list[dict], cmp: dict) -> dict[int, str]:
@@ -202,7 +270,7 @@ def session_outliers(infos: list[dict], cmp: dict) -> dict[int, str]:
             if abs(z) > cmp["max_z"]:
                 shown = {"gain": lambda y: f"{np.exp(y):.3g} N per unit change",
                          "offset": lambda y: f"Fz {y:+.2f} N at rest", "lag": lambda y: f"{y * 1000:+.0f} ms",
-                         "rate": lambda y: f"{np.exp(y):.2f} fps"}[what]
+                         "rate": lambda y: f"stamps at {np.exp(y):.4f} x the declared rate"}[what]
                 group = "pose" if what == "gain" else "session"
                 out.setdefault(i, []).append(
                     f"{what} {shown(x)} against the {group}'s median {shown(med)} over its {len(same)} other trials "

@@ -1,7 +1,8 @@
 """The rig's own layout (tool/formats/native_layout.py) -> RawTrial.
 
-The force is put on the host clock coarsely here (port-open time + Arduino ms); ingest refines the
-offset by cross-correlation once the frames are decoded (clock["refine"] = True).
+The force is put on the host clock here: from each serial line's arrival time where the recorder
+stamped them (force_arrival.csv), else coarsely (port-open time + Arduino ms), and then ingest
+refines the offset by cross-correlation once the frames are decoded (clock["refine"] = True).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import cv2
 import numpy as np
 
 from tactilepipe.core.errors import InputError
+from tactilepipe.tool.formats.arrival_log import ARRIVAL_NAME, arduino_clock
 from tactilepipe.tool.formats.imagefile import read_image
 from tactilepipe.tool.formats.native_layout import (DIGIT_SIZES, FRAME_NAME, SENSORS, TrialMeta, calibrate,
                                                      read_calibration, read_frame_index)
@@ -63,19 +65,31 @@ def read_native_trial(trial_dir: str | Path, bias_window_s: float = 0.5) -> RawT
         raise InputError(trial_dir / "force.log", f"fewer than 2 samples in the first {bias_window_s} s "
                                                   f"to take the zero-force bias from")
     force = calibrate(log.counts, matrix, log.counts[rest].mean(axis=0))[:, :3]
-    host_ns = log.start_host_ns + log.arduino_ms * 1_000_000
-    # `tactilepipe record` stamps the port-open time as the Arduino resets: its clock is good to a
-    # frame (docs/rig.md), better than an image fit on a short trial (tool/data/ingest.py)
-    recorded = isinstance(meta.notes, dict) and "recorder" in meta.notes
+    arrivals = trial_dir / ARRIVAL_NAME
+    if arrivals.exists():
+        # each line stamped as it reached the host: the Arduino clock is their lower envelope
+        # (tool/formats/arrival_log.py); the images only witness it, and give the session's
+        # camera latency at the dataset stage (tool/data/session_clock.py)
+        fit = arduino_clock(arrivals, log.line_numbers, log.arduino_ms)
+        host_ns = fit.host_ns(log.arduino_ms)
+        clock = {"method": "serial_arrival", "arrival": fit.record(),
+                 "millis0_after_port_open_s": round((fit.offset_ns - log.start_host_ns) / 1e9, 4)}
+    else:
+        # only the port-open time: coarse (the Arduino boots a fraction of a second later), refined
+        # against the images at ingest (tool/data/clock_sync.py)
+        host_ns = log.start_host_ns + log.arduino_ms * 1_000_000
+        clock = {"method": "serial_start+xcorr", "refine": True}
     steps = np.diff(log.arduino_ms)
     evidence = {"unloaded_counts": [round(float(v), 2) for v in log.counts[rest].mean(axis=0)],
                 "declared_fps": float(meta.camera_fps), "declared_serial_hz": float(meta.serial_hz),
-                "serial_hz": float(1000.0 / np.median(steps)) if len(steps) else None, "bias_window_s": bias_window_s}
+                "serial_hz": float(1000.0 / np.median(steps)) if len(steps) else None, "bias_window_s": bias_window_s,
+                # each gauge's excursion, and which one a press along z moves most (tool/data/witness.py)
+                "gauge_range_counts": [round(float(v), 2) for v in np.subtract(*np.percentile(log.counts, [99, 1], axis=0))],
+                "press_gauge": int(np.argmax(np.abs(np.linalg.inv(matrix)[:, 2])))}
     return RawTrial(
         trial=f"{session_dir.name}/{trial_dir.name}", tool=meta.tool, kind=meta.kind,
         orientation_deg=meta.orientation_deg, insertion_mm=meta.insertion_mm, frames=frames,
         force_host_ns=host_ns, force_n=force, source=str(trial_dir),
-        clock={"method": "serial_start+xcorr", "refine": True, "recorded": recorded,
-               **({"arduino_wraps": log.wraps} if log.wraps else {})}, evidence=evidence,
+        clock={**clock, **({"arduino_wraps": log.wraps} if log.wraps else {})}, evidence=evidence,
         drops={**{f"serial: {k}": v for k, v in log.drops.items()},
                **{f"{sensor}: frame files not in frames.csv": n for sensor, n in extra.items() if n}})

@@ -54,6 +54,7 @@ import numpy as np
 from tactilepipe.core.atomic import atomic_path, write_text
 from tactilepipe.core.errors import ConfigError
 from tactilepipe.tool.formats import native_layout as layout
+from tactilepipe.tool.formats.arrival_log import ARRIVAL_NAME
 from tactilepipe.tool.sim.motion import Grasp, PressProfile, SlideProfile
 from tactilepipe.tool.sim.plan import (KINDS, SESSION_EPOCH_S, STREAM_LOOK, STREAM_RIG, TrialSpec, calibration_matrix,
                                        frames_per_trial, sim_group, trial_rng, uniform)
@@ -257,11 +258,32 @@ class Trial:
         counts = np.clip(np.rint(raw + noise), 0, layout.ADC_COUNTS).astype(np.int64)
         lines = [f"# start_host_ns={start_host_ns}"]
         lines += [f"{ms}," + ",".join(str(c) for c in row) for ms, row in zip(stamp_ms, counts)]
+        arrival = self._arrival_ns(host_ns, lines[1:], quiet)
         return {"lines": lines, "arduino_ms": stamp_ms, "counts": counts, "start_host_ns": start_host_ns,
+                "arrival_host_ns": arrival,
                 "offset_s": offset_s, "rate_ppm": ppm, "sample_host_ns": np.rint(host_ns).astype(np.int64),
                 "stamp_host_ns": np.rint(start_host_ns + offset_s * 1e9
                                          + stamp_ms * 1e6 / (1 + ppm * 1e-6)).astype(np.int64),
                 "wrench": wrench, "clipped": int(((counts == 0) | (counts == layout.ADC_COUNTS)).sum())}
+
+    def _arrival_ns(self, sample_host_ns: np.ndarray, lines: list[str], quiet: bool) -> np.ndarray:
+        """When each line reaches the host (the recorder's force_arrival.csv): sent once the
+        gauges are read, at the baud rate, then the USB adaptor's polling, the kernel and the
+        reader thread; now and then the reader is not scheduled for tens of ms."""
+        usb = self.sim["nano17"]["usb"]
+        rng = trial_rng(self.params["seed"], self.spec, 41)      # its own stream: the log's draws stay as they were
+        n = len(lines)
+        send_ns = np.array([(len(ln) + 1) * 10 / usb["baud"] * 1e9 for ln in lines])
+        poll = rng.uniform(0, usb["poll_ms"], n) * 1e6
+        tail = rng.exponential(usb["delay_ms"], n) * 1e6
+        hiccup = (rng.random(n) < usb["hiccup_rate"]) * rng.uniform(*usb["hiccup_ms"], n) * 1e6
+        late = 0.0 if quiet else poll + tail + hiccup
+        arrival = np.rint(sample_host_ns + send_ns + late).astype(np.int64)
+        return np.maximum.accumulate(arrival)           # one reader thread: lines arrive in order
+
+    def arrival_csv(self, ser: dict) -> str:
+        rows = ["line,host_ns"] + [f"{i + 2},{t}" for i, t in enumerate(ser["arrival_host_ns"])]
+        return "\n".join(rows) + "\n"
 
     def meta(self) -> layout.TrialMeta:
         return layout.TrialMeta(trial=self.spec.name, tool=self.spec.tool, kind=self.spec.kind,
@@ -326,5 +348,7 @@ def write_trial(session_dir: str | Path, spec: TrialSpec, params: dict) -> None:
         for stale in set(q.name for q in sdir.glob("frame_*.png")) - set(frame_names):
             (sdir / stale).unlink()
         write_text(sdir / "frames.csv", trial.frames_csv(s))
-    write_text(tdir / "force.log", "\n".join(trial.serial()["lines"]) + "\n")
+    ser = trial.serial()
+    write_text(tdir / "force.log", "\n".join(ser["lines"]) + "\n")
+    write_text(tdir / ARRIVAL_NAME, trial.arrival_csv(ser))
     trial.meta().write(tdir)
