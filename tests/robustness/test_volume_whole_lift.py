@@ -90,7 +90,7 @@ def test_a_bag_that_starts_after_lift_off_is_refused_naming_it(lifts, tmp_path, 
     assert volume_dataset(tmp_path, {"late": (300.0, [rec], (cut_s, None))}, method) == 2
     err = refusal(capsys)
     m = re.search(r"late\.parquet: the bag starts after lift-off: the sensors already carry (\d\.\d+) N of vertical "
-                  r"shear \(\|Fy0\| \+ \|Fy1\|\) at its first message, (\d\.\d+) N more than at its last", err)
+                  r"shear \(\|Fy0\| \+ \|Fy1\|\) over its first 0\.20 s, (\d\.\d+) N more than over its last", err)
     assert m, err
     assert 3.2 < float(m[2]) < 3.8 and "never leaves the table" not in err     # 356 g: 3.49 N
 
@@ -101,9 +101,9 @@ def test_a_bag_that_ends_before_the_put_down_is_refused_naming_it(lifts, tmp_pat
     cut_s = rec["phases"]["hold"][1]                          # stopped at the end of the hold
     assert volume_dataset(tmp_path, {"early": (0.0, [rec], (0.0, cut_s))}, method) == 2
     err = refusal(capsys)
-    m = re.search(r"early\.parquet: the bag ends before the container is put down: at its last message the sensors "
-                  r"still carry (\d\.\d+) N of vertical shear above their level at its first, of the (\d\.\d+) N "
-                  r"carried off the table", err)
+    m = re.search(r"early\.parquet: the bag ends before the container is put down: over its last 0\.20 s the sensors "
+                  r"still carry (\d\.\d+) N of vertical shear above their level over its first, of the (\d\.\d+) "
+                  r"N carried off the table", err)
     assert m, err
     assert 0.4 < float(m[1]) < 0.7 and 0.4 < float(m[2]) < 0.7                 # 56 g: 0.55 N
 

@@ -50,26 +50,28 @@ def fill_short_gaps(mask: np.ndarray, max_gap: int) -> np.ndarray:
     return out
 
 
-def _ends(rec: dict, width: int) -> tuple[float, float, float, float]:
+def _ends(rec: dict, width: int) -> tuple[float, float, float, float, float]:
     """The vertical shear |Fy0| + |Fy1| over the first and the last 2 x ``width`` samples (median),
-    and the noise of its ``width``-sample mean there (as dataset._vertical_load's)."""
+    the noise of its ``width``-sample mean there (as dataset._vertical_load's), and how long (s)
+    those samples last."""
     fy = np.abs(np.nan_to_num(rec["fy0"])) + np.abs(np.nan_to_num(rec["fy1"]))
     n = max(2, 2 * width)
     first, last = fy[:n], fy[-n:]
+    span = min(n, len(fy)) * (float(np.median(np.diff(rec["t"]))) if len(fy) > 1 else 0.0)
     return (float(np.median(first)), float(np.std(first) / np.sqrt(width)),
-            float(np.median(last)), float(np.std(last) / np.sqrt(width)))
+            float(np.median(last)), float(np.std(last) / np.sqrt(width)), span)
 
 
 def check_starts_on_table(rec: dict, width: int, path) -> None:
     """InputError when the bag's first samples already carry the container (see the module
     docstring); called before the off-table phase is looked for, which would miss it."""
-    first, first_noise, last, last_noise = _ends(rec, width)
+    first, first_noise, last, last_noise, span = _ends(rec, width)
     noise = max(first_noise, last_noise)
     if first - last > CLEAR_NOISE * noise:
         raise InputError(path, f"the bag starts after lift-off: the sensors already carry {first:.3f} N of vertical "
-                               f"shear (|Fy0| + |Fy1|) at its first message, {first - last:.3f} N more than at its "
-                               f"last, on the table (clearly: 10 x the noise {noise:.3f} N). A bag holds one whole "
-                               f"lift: start recording with the container on the table")
+                               f"shear (|Fy0| + |Fy1|) over its first {span:.2f} s, {first - last:.3f} N more than "
+                               f"over its last, on the table (clearly: 10 x the noise {noise:.3f} N). A bag holds one "
+                               f"whole lift: start recording with the container on the table")
 
 
 def check_one_lift(rec: dict, seg: dict, load: np.ndarray, lifted: np.ndarray, used: str, start: int, stop: int,
@@ -90,9 +92,9 @@ def check_one_lift(rec: dict, seg: dict, load: np.ndarray, lifted: np.ndarray, u
         loads = " and ".join(f"{float(np.median(load[a:b])):.3f} N" for a, b in phases)
         raise InputError(path, f"two lifts in one bag: off the table at {spans} (by the {used} method, the pads "
                                f"carrying {loads}). A bag holds one lift: record each lift in its own bag")
-    first, _, last, _ = _ends(rec, width)
+    first, _, last, _, span = _ends(rec, width)
     if last - first >= STILL_CARRIED_SHARE * carried:
-        raise InputError(path, f"the bag ends before the container is put down: at its last message the sensors "
-                               f"still carry {last - first:.3f} N of vertical shear above their level at its first, "
-                               f"of the {carried:.3f} N carried off the table from {t[start]:.2f} s. A bag holds one "
-                               f"whole lift: stop recording once the container stands on the table")
+        raise InputError(path, f"the bag ends before the container is put down: over its last {span:.2f} s the "
+                               f"sensors still carry {last - first:.3f} N of vertical shear above their level over "
+                               f"its first, of the {carried:.3f} N carried off the table from {t[start]:.2f} s. A "
+                               f"bag holds one whole lift: stop recording once the container stands on the table")
