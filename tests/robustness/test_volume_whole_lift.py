@@ -89,10 +89,27 @@ def test_a_bag_that_starts_after_lift_off_is_refused_naming_it(lifts, tmp_path, 
     assert rec["off_table"][rec["t"] < cut_s].any()          # the container left the table before the cut
     assert volume_dataset(tmp_path, {"late": (300.0, [rec], (cut_s, None))}, method) == 2
     err = refusal(capsys)
-    m = re.search(r"late\.parquet: the bag starts after lift-off: the sensors already carry (\d\.\d+) N of vertical "
-                  r"shear \(\|Fy0\| \+ \|Fy1\|\) over its first 0\.20 s, (\d\.\d+) N more than over its last", err)
+    m = re.search(r"late\.parquet: the bag starts after lift-off: the sensors already carry up to (\d\.\d+) N of "
+                  r"vertical shear \(\|Fy0\| \+ \|Fy1\|\) over its first 0\.20 s, where its rest level is read, "
+                  r"(\d\.\d+) N more than over its last", err)
     assert m, err
     assert 3.2 < float(m[2]) < 3.8 and "never leaves the table" not in err     # 356 g: 3.49 N
+
+
+def test_a_bag_must_hold_its_rest_level_before_the_pads_take_the_load(lifts, tmp_path, capsys):
+    """The rest level is read over the first 2 x segment.force_smooth_s: a bag that starts 0.1 s
+    before the pads take the load is refused as above (its rest would hold part of the load); one
+    that starts 0.4 s before is kept, and carries what the whole recording carries (within half
+    volume_checks.label_floor_n)."""
+    rec = lifts[(300.0, 1)]
+    onset = rec["t"][np.argmax(rec["true_force"][..., 1].sum(axis=(1, 2)) > 0.01)]
+    bags = {"whole": (300.0, [rec], (0.0, None)), "early_enough": (300.0, [rec], (onset - 0.4, None))}
+    assert volume_dataset(tmp_path, bags) == 0
+    qc = pd.read_csv(tmp_path / "qc.csv").set_index("lift")
+    assert qc.loc["s/early_enough", "carried_n"] == pytest.approx(qc.loc["s/whole", "carried_n"], abs=0.05)
+    capsys.readouterr()
+    assert volume_dataset(tmp_path / "late", {"late": (300.0, [rec], (onset - 0.1, None))}) == 2
+    assert "late.parquet: the bag starts after lift-off: the sensors already carry up to" in refusal(capsys)
 
 
 @pytest.mark.parametrize("method", ["auto", "force"])

@@ -7,9 +7,9 @@ has no zero to measure from (its load reads as nothing, or as too little), a sec
 same bag would be dropped unmentioned, and a bag that stops while the container is still held has
 no put-down. Each is refused here with its cause named, never kept with a volume label:
 
-- **starts after lift-off**: the vertical shear |Fy0| + |Fy1| over the bag's first samples lies
-  clearly (10 x the noise at either end) above its level over the last ones, where the container
-  stands on the table again. At its start the pads hold nothing but their bias (the gripper open,
+- **starts after lift-off**: the vertical shear |Fy0| + |Fy1| over the bag's first samples (where
+  the rest level is read) rises clearly (10 x the noise) above its level over the last ones, where
+  the container stands on the table again. At its start the pads hold nothing but their bias (the gripper open,
   or just closed), so any clear load there is the container's weight.
 - **ends before the put-down**: the pads still carry half the lift's load or more over the last
   samples. Half, not 10 x the noise: a container set down with the gripper still closed may keep
@@ -50,27 +50,31 @@ def fill_short_gaps(mask: np.ndarray, max_gap: int) -> np.ndarray:
     return out
 
 
-def _ends(rec: dict, width: int) -> tuple[float, float, float, float, float]:
-    """The vertical shear |Fy0| + |Fy1| over the first and the last 2 x ``width`` samples (median),
-    the noise of its ``width``-sample mean there (as dataset._vertical_load's), and how long (s)
-    those samples last."""
+def _ends(rec: dict, width: int) -> dict:
+    """The vertical shear |Fy0| + |Fy1| over the bag's first and last 2 x ``width`` samples, where
+    dataset._vertical_load reads the rest level: its median at each end (``first``, ``last``), the
+    highest ``width``-sample mean among the first ones (``first_peak``: a load rising there), the
+    noise of such a mean over the last ones (as _vertical_load's), and how long (s) they last."""
     fy = np.abs(np.nan_to_num(rec["fy0"])) + np.abs(np.nan_to_num(rec["fy1"]))
     n = max(2, 2 * width)
     first, last = fy[:n], fy[-n:]
-    span = min(n, len(fy)) * (float(np.median(np.diff(rec["t"]))) if len(fy) > 1 else 0.0)
-    return (float(np.median(first)), float(np.std(first) / np.sqrt(width)),
-            float(np.median(last)), float(np.std(last) / np.sqrt(width)), span)
+    means = np.convolve(first, np.ones(width) / width, mode="valid") if len(first) >= width else first
+    return {"first": float(np.median(first)), "first_peak": float(means.max()) if len(means) else 0.0,
+            "last": float(np.median(last)), "last_noise": float(np.std(last) / np.sqrt(width)),
+            "span": min(n, len(fy)) * (float(np.median(np.diff(rec["t"]))) if len(fy) > 1 else 0.0)}
 
 
 def check_starts_on_table(rec: dict, width: int, path) -> None:
     """InputError when the bag's first samples already carry the container (see the module
-    docstring); called before the off-table phase is looked for, which would miss it."""
-    first, first_noise, last, last_noise, span = _ends(rec, width)
-    noise = max(first_noise, last_noise)
-    if first - last > CLEAR_NOISE * noise:
-        raise InputError(path, f"the bag starts after lift-off: the sensors already carry {first:.3f} N of vertical "
-                               f"shear (|Fy0| + |Fy1|) over its first {span:.2f} s, {first - last:.3f} N more than "
-                               f"over its last, on the table (clearly: 10 x the noise {noise:.3f} N). A bag holds one "
+    docstring); called before the off-table phase is looked for, which would miss it. Against the
+    noise over the last samples (on the table): at the start a rising load is no noise."""
+    ends = _ends(rec, width)
+    excess, noise = ends["first_peak"] - ends["last"], ends["last_noise"]
+    if excess > CLEAR_NOISE * noise:
+        raise InputError(path, f"the bag starts after lift-off: the sensors already carry up to "
+                               f"{ends['first_peak']:.3f} N of vertical shear (|Fy0| + |Fy1|) over its first "
+                               f"{ends['span']:.2f} s, where its rest level is read, {excess:.3f} N more than over its "
+                               f"last, on the table (clearly: 10 x the noise {noise:.3f} N there). A bag holds one "
                                f"whole lift: start recording with the container on the table")
 
 
@@ -92,9 +96,10 @@ def check_one_lift(rec: dict, seg: dict, load: np.ndarray, lifted: np.ndarray, u
         loads = " and ".join(f"{float(np.median(load[a:b])):.3f} N" for a, b in phases)
         raise InputError(path, f"two lifts in one bag: off the table at {spans} (by the {used} method, the pads "
                                f"carrying {loads}). A bag holds one lift: record each lift in its own bag")
-    first, _, last, _, span = _ends(rec, width)
-    if last - first >= STILL_CARRIED_SHARE * carried:
-        raise InputError(path, f"the bag ends before the container is put down: over its last {span:.2f} s the "
-                               f"sensors still carry {last - first:.3f} N of vertical shear above their level over "
-                               f"its first, of the {carried:.3f} N carried off the table from {t[start]:.2f} s. A "
-                               f"bag holds one whole lift: stop recording once the container stands on the table")
+    ends = _ends(rec, width)
+    still = ends["last"] - ends["first"]
+    if still >= STILL_CARRIED_SHARE * carried:
+        raise InputError(path, f"the bag ends before the container is put down: over its last {ends['span']:.2f} s "
+                               f"the sensors still carry {still:.3f} N of vertical shear above their level over its "
+                               f"first, of the {carried:.3f} N carried off the table from {t[start]:.2f} s. A bag "
+                               f"holds one whole lift: stop recording once the container stands on the table")
