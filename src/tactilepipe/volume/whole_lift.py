@@ -9,8 +9,10 @@ no put-down. Each is refused here with its cause named, never kept with a volume
 
 - **starts after lift-off**: the vertical shear |Fy0| + |Fy1| over the bag's first samples (where
   the rest level is read) rises clearly (10 x the noise) above its level over the last ones, where
-  the container stands on the table again. At its start the pads hold nothing but their bias (the gripper open,
-  or just closed), so any clear load there is the container's weight.
+  the container stands on the table again. At its start the pads hold nothing but their bias (the
+  gripper open, or just closed), so any clear load there is the container's weight. A bag that
+  starts less than those samples (2 x ``segment.force_smooth_s``) before the pads take the load is
+  refused the same way: its rest level would hold part of the load.
 - **ends before the put-down**: the pads still carry half the lift's load or more over the last
   samples. Half, not 10 x the noise: a container set down with the gripper still closed may keep
   part of its weight on the pads as friction shear.
