@@ -3,7 +3,9 @@
 A lift is off the table while the arm is raised (pose topic) or, in recordings without the
 pose topic, while the vertical shear |Fy| carried by the pads stays near its hold level. Either
 way the pads must carry a load off the table: a lift whose vertical shear never rises clearly
-above the noise (nothing grasped) is refused, never kept with its volume label.
+above the noise (nothing grasped) is refused, never kept with its volume label. So is a bag that
+is not one whole lift (volume/whole_lift.py): one that starts after lift-off, ends before the
+put-down, or holds a second lift.
 
 Axes (docs/robustness.md): on both sensors +z points into the pad (grip: Fz > 0) and +y down
 along the pad (the container's weight: Fy > 0 off the table); +x completes a right-handed frame,
@@ -22,7 +24,8 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from tactilepipe.core.errors import InputError
-from tactilepipe.volume import witness
+from tactilepipe.volume import whole_lift, witness
+from tactilepipe.volume.whole_lift import fill_short_gaps
 
 FORCE_COLS = ["gfx", "gfy", "gfz"]
 PILLAR_LOADED_N = 0.2        # N: a pillar pressing harder than this carries load
@@ -94,17 +97,6 @@ def _longest_run(mask: np.ndarray) -> tuple[int, int]:
     return int(starts[k]), int(stops[k])
 
 
-def _fill_short_gaps(mask: np.ndarray, max_gap: int) -> np.ndarray:
-    """Set runs of False no longer than ``max_gap`` that lie between True samples."""
-    out = mask.copy()
-    edges = np.diff(np.concatenate([[1], mask.astype(np.int8), [1]]))
-    starts, stops = np.flatnonzero(edges == -1), np.flatnonzero(edges == 1)
-    for a, b in zip(starts, stops):
-        if 0 < a and b < len(mask) and b - a <= max_gap:
-            out[a:b] = True
-    return out
-
-
 def apply_axes(rec: dict, axes: dict) -> dict:
     """``rec`` with each sensor's fx, fy, fz taken from the recorded axis (and sign) that
     params.yaml ``papillarray_axes`` names for it ({"sensor_0": {"x": "+x", "y": "-y", ...}})."""
@@ -135,11 +127,14 @@ def off_table_segment(rec: dict, seg: dict, path: str | Path = "?") -> tuple[int
     Either method needs the pads to carry a load clearly above the noise (10 x the noise of the
     smoothed vertical shear at rest) off the table: a lift with nothing grasped is an InputError
     (the force method finds no off-table phase, the pose method finds one that carries nothing).
+    So is a bag that is not one whole lift (whole_lift.py: named before "never leaves the table",
+    which a bag that starts after lift-off would otherwise read as).
     """
     method = seg["method"]
     if method == "pose" and rec["tool_z"] is None:
         raise InputError(path, "segment.method is 'pose' but the bag has no /tool_pose topic")
     load, noise, width = _vertical_load(rec, seg)
+    whole_lift.check_starts_on_table(rec, width, path)     # else its load reads as none: "never leaves the table"
     if method in ("auto", "pose") and rec["tool_z"] is not None:
         z = rec["tool_z"]
         rest = np.median(z[: max(1, int(0.1 * len(z)))])
@@ -155,7 +150,7 @@ def off_table_segment(rec: dict, seg: dict, path: str | Path = "?") -> tuple[int
             mask = np.zeros(len(load), bool)            # no load rises clearly above the noise
         else:
             mask = load >= seg["force_fraction"] * level
-            mask = _fill_short_gaps(mask, 2 * width)    # noise dips on light loads split the hold
+            mask = fill_short_gaps(mask, 2 * width)     # noise dips on light loads split the hold
         used = "force"
     start, stop = _longest_run(mask)
     duration = rec["t"][stop - 1] - rec["t"][start] if stop > start else 0.0
@@ -168,6 +163,7 @@ def off_table_segment(rec: dict, seg: dict, path: str | Path = "?") -> tuple[int
             raise InputError(path, f"the pads carry no load off the table (median vertical shear {carried:.3f} N "
                                    f"above rest over the {duration:.2f}-s off-table phase by the pose method, "
                                    f"need 10 x the rest noise {noise:.3f} N): nothing grasped?")
+    whole_lift.check_one_lift(rec, seg, load, mask, used, start, stop, width, path)
     _check_fy_sign(rec, start, stop, width, noise, path)
     _check_fz_sign(rec, start, stop, noise, path)
     return start, stop, used
