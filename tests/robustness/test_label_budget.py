@@ -80,6 +80,7 @@ FAULTS = {
     "open gauge wire": (lambda t, b: fault.open_gauge(t, 2), "witness 'gauge wire'"),
     "exposure step on one camera": (lambda t, b: fault.exposure_step(t, "digit_left", 1.4), "witness 'exposure'"),
     "every second frame repeated": (lambda t, b: fault.repeated_frames(t), None),
+    "cameras swapped": (lambda t, b: fault.swap_cameras(t), "witness 'cameras'"),
     "zero drifting 1 N": (lambda t, b: fault.drift(t, _cal(b), 1.0), None),
 }
 # Faults the witnesses do not catch yet, each a measured overrun (docs/robustness.md lists them):
