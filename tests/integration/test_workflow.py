@@ -161,6 +161,21 @@ def test_plain_snakemake_uses_the_default_profile(tmp_path: Path):
     assert "Using workflow specific profile profiles/default" in out
 
 
+@pytest.mark.slow
+def test_a_named_build_of_a_simulated_session_builds_to_the_end(tmp_path: Path):
+    """A named build shares its scale's simulated session, and the simulator's stamp with it
+    (results/<scale>/params/, decision 0025): its report reads that stamp for provenance.json."""
+    wd = copy_project(tmp_path)
+    snakemake(wd, "--config", "scale=smoke", "build=alt", "scenes=[drift]")
+    assert (results(wd, "alt") / "drift/metrics.json").is_file()
+    prov = json.loads((results(wd, "alt") / "drift/provenance.json").read_text())
+    stamp = json.loads((results(wd, "smoke") / "params/drift-simulate.json").read_text())
+    assert prov["stages"]["drift-simulate"]["params"]["simulate_drift"] == stamp["values"]["simulate_drift"]
+    assert stamp["values"]["simulate_drift"]["rate_hz"] == 100                # the smoke scale's, not the default's
+    assert not (results(wd, "alt") / "params/drift-simulate.json").exists()   # one simulator stamp per scale
+    assert _ran(snakemake(wd, "-n", "--config", "scale=smoke", "build=alt", "scenes=[drift]")) == set()
+
+
 @pytest.mark.parametrize("override, expected", [
     (["scale=huge"], "unknown scale 'huge'"),
     (["folds={n_folds: two, train_lifts_per_volume: 3, test_lifts_per_volume: 2}"], "folds.n_folds"),

@@ -174,9 +174,9 @@ def run_spec(run):
 
 
 def provenance_args(scene):
-    """`--provenance-stages ... --sessions ...`: provenance.json records their code, parameters, content."""
+    """Stages, sessions and the stamps not in the build's folder (a simulator's): what provenance.json records."""
     stages, dirs = scenes.provenance_stages(scene, SHEET)
-    return "--provenance-stages " + " ".join(stages) + " --sessions " + " ".join(shlex.quote(d) for d in dirs)
+    return shlex.join(["--provenance-stages", *stages, "--sessions", *dirs, "--provenance-stamps", *STAMPS.scale_stamps(stages)])
 
 
 def provenance_inputs(scene):
