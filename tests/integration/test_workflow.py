@@ -7,6 +7,7 @@ import json
 import os
 import re
 import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,8 @@ from tactilepipe.tool.model.network import PAPER_WIDTH, build_model, count_param
 from tactilepipe.tool.report.portability import run_digests
 from tactilepipe.tool.runs import sweep_run_name, tool_runs
 
-from support.project import BIN, REPO, SMOKE, copy_project, results, run, snakemake
+from support.hostile import billion_laughs
+from support.project import BIN, ENV, REPO, SMOKE, copy_project, results, run, snakemake
 
 pytestmark = pytest.mark.integration
 
@@ -190,6 +192,17 @@ def test_bad_config_stops_before_any_job(tmp_path: Path, override, expected):
     assert proc.returncode != 0
     assert expected in proc.stdout + proc.stderr
     assert not (wd / "results").exists() and not (wd / "raw").exists()
+
+
+def test_a_billion_laughs_params_file_stops_snakemake_in_one_line(tmp_path: Path):
+    """Snakemake itself loads params.yaml (`configfile:`): the Snakefile bounds its aliases first."""
+    wd = copy_project(tmp_path)
+    (wd / "params.yaml").write_text(billion_laughs())
+    proc = subprocess.run([str(BIN / "snakemake"), "-n", "--cores", "2"], cwd=wd, capture_output=True, text=True,
+                          timeout=120, env={**ENV, "PYTHONPATH": str(wd / "src")})
+    assert proc.returncode == 1
+    assert proc.stderr.strip().splitlines() == ["error: params.yaml: its anchors and aliases expand to more than "
+                                                "200,000 nodes (at line 6): refused before loading"], proc.stderr
 
 
 @pytest.mark.extended

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from support.hostile import billion_laughs
 from support.project import REPO
 
 SRC = REPO / "src"
@@ -74,3 +75,13 @@ def test_a_results_checkpoint_carrying_code_is_refused_and_never_run(tmp_path):
                     f"(it calls io.open); a pickle like this can run code, so it is not loaded"), line
     assert not marker.exists()
     assert not (tmp_path / "record.json").exists()
+
+
+# --- a params.yaml whose aliases expand without bound ---------------------------------------------------
+
+def test_a_billion_laughs_params_file_stops_a_stage_in_one_line(tmp_path):
+    (tmp_path / "params.yaml").write_text(billion_laughs())
+    proc = tactilepipe("sessions", "--params", "params.yaml", cwd=tmp_path, timeout=60)
+    assert proc.returncode == 2
+    assert one_error_line(proc) == ("tactilepipe sessions: error: params.yaml: its anchors and aliases expand to "
+                                    "more than 200,000 nodes (at line 6): refused before loading")
