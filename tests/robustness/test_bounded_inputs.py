@@ -85,3 +85,94 @@ def test_a_billion_laughs_params_file_stops_a_stage_in_one_line(tmp_path):
     assert proc.returncode == 2
     assert one_error_line(proc) == ("tactilepipe sessions: error: params.yaml: its anchors and aliases expand to "
                                     "more than 200,000 nodes (at line 6): refused before loading")
+
+
+# --- a raw file is a regular file of a recording's size ------------------------------------------------
+
+def _zero(path: Path) -> Path:
+    """``path`` made a link to /dev/zero: endless bytes, where a whole-file read never ends."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.exists() or path.is_symlink():
+        path.unlink()
+    path.symlink_to("/dev/zero")
+    return path
+
+
+@pytest.mark.parametrize("replaced", ["force.log", "digit_left/frame_000003.png"])
+def test_a_trial_file_linked_to_dev_zero_stops_tool_ingest_in_one_line(tmp_path, replaced):
+    from support.sessions import make_native_session
+    trial = make_native_session(tmp_path) / "t00"
+    args = ["tool-ingest", str(trial), "--format", "native", "--params", str(REPO / "params.yaml")]
+    assert tactilepipe(*args, "--out", str(tmp_path / "ok.parquet"), cwd=tmp_path).returncode == 0   # as written, it ingests
+    _zero(trial / replaced)
+    proc = tactilepipe(*args, "--out", str(tmp_path / "t.parquet"), cwd=tmp_path, timeout=120)
+    what = "force.log" if replaced == "force.log" else "camera frame"
+    assert proc.returncode == 2
+    assert one_error_line(proc).startswith(f"tactilepipe tool-ingest: error: {trial / replaced}: a character device, "
+                                           f"not a file: a {what} is a regular file; not read")
+    assert not (tmp_path / "t.parquet").exists()
+
+
+def _sparse(path: Path, size: int) -> Path:
+    """A file of ``size`` bytes that takes no disk space (a hole)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "wb") as f:
+        f.truncate(size)
+    return path
+
+
+def _readers():
+    """(reader kind, the file it reads under a folder, the call reading it, its bound)."""
+    from tactilepipe.core import rawfile
+    from tactilepipe.drift import read_session_meta
+    from tactilepipe.papillarray.bagio import read_topics
+    from tactilepipe.tool.formats import public_layout, rosbag
+    from tactilepipe.tool.formats.imagefile import read_image
+    from tactilepipe.tool.formats.native_layout import TrialMeta, read_calibration, read_frame_index
+    from tactilepipe.tool.formats.serial_log import read_serial_log
+    from tactilepipe.volume.labels import read_session_labels
+    return [
+        ("force.log", "force.log", read_serial_log, rawfile.FORCE_LOG_MAX),
+        ("camera frame", "frame_000000.png", read_image, rawfile.IMAGE_MAX),
+        ("frames.csv", "frames.csv", lambda p: read_frame_index(p.parent), rawfile.TABLE_MAX),
+        ("trial's meta.json", "meta.json", lambda p: TrialMeta.read(p.parent), rawfile.META_MAX),
+        ("calibration file", "nano17.cal", read_calibration, rawfile.META_MAX),
+        ("force file", "force_0.csv", lambda p: public_layout._parse_force(p, "normal"), rawfile.TABLE_MAX),
+        ("bag's metadata sidecar", "t.meta.json", lambda p: rosbag.read_sidecar_meta(p.with_name("t.bag")),
+         rawfile.META_MAX),
+        ("ROS bag", "t.bag", rosbag._bag_kind, rawfile.BAG_MAX),
+        ("ROS1 bag", "lift.bag", lambda p: read_topics(p, {}), rawfile.BAG_MAX),
+        ("lifts.csv", "lifts.csv", lambda p: read_session_labels(p.parent), rawfile.TABLE_MAX),
+        ("session.json", "session.json", read_session_meta, rawfile.META_MAX),
+    ]
+
+
+READER_KINDS = [r[0] for r in _readers()]
+
+
+@pytest.mark.parametrize("kind", READER_KINDS)
+def test_each_raw_reader_refuses_a_device_and_a_file_over_its_bound(tmp_path, kind):
+    from tactilepipe.core.errors import InputError
+    _, name, read, bound = next(r for r in _readers() if r[0] == kind)
+    with pytest.raises(InputError, match=f"^{_zero(tmp_path / 'z' / name)}: a character device, not a file: "
+                                         f"a {kind} is a regular file; not read$"):
+        read(tmp_path / "z" / name)
+    big = _sparse(tmp_path / "big" / name, bound + 1)
+    with pytest.raises(InputError, match=f"^{big}: .*: larger than any {kind} \\(.* at most\\); not read$"):
+        read(big)
+
+
+def test_read_raw_bytes_reads_a_file_within_its_bound_and_refuses_folders_and_fifos(tmp_path):
+    from tactilepipe.core.errors import InputError
+    from tactilepipe.core.rawfile import read_raw_bytes
+    (tmp_path / "ok").write_bytes(b"x" * 10)
+    assert read_raw_bytes(tmp_path / "ok", 10, "log") == b"x" * 10
+    with pytest.raises(InputError, match="10 bytes: larger than any log \\(9 bytes at most\\)"):
+        read_raw_bytes(tmp_path / "ok", 9, "log")
+    os.mkfifo(tmp_path / "fifo")                   # opened, it would wait for a writer forever
+    with pytest.raises(InputError, match="a FIFO \\(named pipe\\), not a file"):
+        read_raw_bytes(tmp_path / "fifo", 10, "log")
+    with pytest.raises(InputError, match="a folder, not a file"):
+        read_raw_bytes(tmp_path, 10, "log")
+    with pytest.raises(FileNotFoundError):         # the caller says what the missing file is for
+        read_raw_bytes(tmp_path / "absent", 10, "log")
