@@ -185,6 +185,9 @@ def test_a_named_build_of_a_simulated_session_builds_to_the_end(tmp_path: Path):
     # a recorded session that is not there: named by the session sheet before any job is planned
     (["drift_session=d2026-01-01"], "WorkflowError in file"),
     (["drift_session=d2026-01-01"], "raw/drift/d2026-01-01: session folder not found (params.yaml drift_session)"),
+    # a session name is one plain folder name under raw/<study>/, never a way out of it
+    (["tool_sessions=[..]"], "invalid parameter at 'tool_sessions.0': '..' is not a plain folder name under raw/<study>/"),
+    (["drift_session=../volume"], "invalid parameter at 'drift_session': '../volume' is not a plain folder name"),
 ])
 def test_bad_config_stops_before_any_job(tmp_path: Path, override, expected):
     wd = copy_project(tmp_path)

@@ -176,3 +176,24 @@ def test_read_raw_bytes_reads_a_file_within_its_bound_and_refuses_folders_and_fi
         read_raw_bytes(tmp_path, 10, "log")
     with pytest.raises(FileNotFoundError):         # the caller says what the missing file is for
         read_raw_bytes(tmp_path / "absent", 10, "log")
+
+
+# --- a session name is a plain folder name under raw/<study>/ ------------------------------------------
+
+@pytest.mark.parametrize("key, value", [("tool_sessions", [".."]), ("volume_sessions", ["sim-{scale}", "a/b"]),
+                                        ("drift_session", "."), ("tool_sessions", ["..."])])
+def test_a_session_name_that_leaves_raw_is_refused_naming_the_key(tmp_path, key, value):
+    proc = tactilepipe("sessions", "--params", str(REPO / "params.yaml"), "--override", json.dumps({key: value}),
+                       cwd=tmp_path)
+    bad = value if isinstance(value, str) else value[-1]
+    where = key if isinstance(value, str) else f"{key}.{len(value) - 1}"
+    assert proc.returncode == 2
+    assert one_error_line(proc) == (f"tactilepipe sessions: error: {REPO / 'params.yaml'}: invalid parameter at "
+                                    f"'{where}': {bad!r} is not a plain folder name under raw/<study>/: letters, "
+                                    f"digits, '-', '_', '.' (not only dots), no '/'")
+
+
+def test_a_plain_session_name_with_dots_is_a_name(tmp_path):
+    proc = tactilepipe("sessions", "--params", str(REPO / "params.yaml"), "--override",
+                       json.dumps({"tool_sessions": ["lab.2026-05-01"]}), cwd=tmp_path)
+    assert "raw/tool/lab.2026-05-01: session folder not found" in proc.stderr, proc.stderr

@@ -105,6 +105,8 @@ def _typed(value, ref):
 
 def _format_error(err: jsonschema.ValidationError, source: str) -> str:
     where = ".".join(str(p) for p in err.absolute_path) or "(top level)"
+    if err.validator == "pattern" and isinstance(err.schema, dict) and err.schema.get("description"):
+        return f"{source}: invalid parameter at '{where}': {err.instance!r} is not {err.schema['description']}"
     return f"{source}: invalid parameter at '{where}': {err.message}"
 
 
