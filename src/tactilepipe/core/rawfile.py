@@ -50,11 +50,11 @@ def check_raw_file(path: str | Path, limit: int, what: str) -> int:
     """The size of the regular file at ``path`` (following links); InputError naming it when it is
     not a regular file or holds more than ``limit`` bytes. A missing file raises FileNotFoundError,
     for the caller to say what the file is for."""
-    mode = os.stat(path).st_mode
-    if not stat.S_ISREG(mode):
-        kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
+    st = os.stat(path)
+    if not stat.S_ISREG(st.st_mode):
+        kind = next((name for test, name in _KINDS if test(st.st_mode)), "not a regular file")
         raise InputError(path, f"{kind}, not a file: a {what} is a regular file; not read")
-    size = os.stat(path).st_size
+    size = st.st_size
     if size > limit:
         raise InputError(path, f"{_size_text(size)}: larger than any {what} ({_size_text(limit)} at most); not read")
     return size
