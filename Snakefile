@@ -2,6 +2,17 @@
 # Run:  snakemake --cores 2          (scenes and scale from params.yaml)
 #       snakemake --cores 2 --config scale=smoke scenes='[volume]'
 
+# Snakemake loads params.yaml at `configfile:` with no bound on its aliases: a file whose nested
+# anchors stand for far more than it holds is refused first, in one line, before it fills the memory.
+import sys
+from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.core.yamlsafe import check_yaml_file
+
+try:
+    check_yaml_file("params.yaml")
+except TactilepipeError as exc:
+    sys.exit(f"error: {exc}")
+
 configfile: "params.yaml"
 
 

@@ -7,6 +7,7 @@ import json
 import os
 import re
 import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,8 @@ from tactilepipe.tool.model.network import PAPER_WIDTH, build_model, count_param
 from tactilepipe.tool.report.portability import run_digests
 from tactilepipe.tool.runs import sweep_run_name, tool_runs
 
-from support.project import BIN, REPO, SMOKE, copy_project, results, run, snakemake
+from support.hostile import billion_laughs
+from support.project import BIN, ENV, REPO, SMOKE, copy_project, results, run, snakemake
 
 pytestmark = pytest.mark.integration
 
@@ -161,6 +163,21 @@ def test_plain_snakemake_uses_the_default_profile(tmp_path: Path):
     assert "Using workflow specific profile profiles/default" in out
 
 
+@pytest.mark.slow
+def test_a_named_build_of_a_simulated_session_builds_to_the_end(tmp_path: Path):
+    """A named build shares its scale's simulated session, and the simulator's stamp with it
+    (results/<scale>/params/, decision 0025): its report reads that stamp for provenance.json."""
+    wd = copy_project(tmp_path)
+    snakemake(wd, "--config", "scale=smoke", "build=alt", "scenes=[drift]")
+    assert (results(wd, "alt") / "drift/metrics.json").is_file()
+    prov = json.loads((results(wd, "alt") / "drift/provenance.json").read_text())
+    stamp = json.loads((results(wd, "smoke") / "params/drift-simulate.json").read_text())
+    assert prov["stages"]["drift-simulate"]["params"]["simulate_drift"] == stamp["values"]["simulate_drift"]
+    assert stamp["values"]["simulate_drift"]["rate_hz"] == 100                # the smoke scale's, not the default's
+    assert not (results(wd, "alt") / "params/drift-simulate.json").exists()   # one simulator stamp per scale
+    assert _ran(snakemake(wd, "-n", "--config", "scale=smoke", "build=alt", "scenes=[drift]")) == set()
+
+
 @pytest.mark.parametrize("override, expected", [
     (["scale=huge"], "unknown scale 'huge'"),
     (["folds={n_folds: two, train_lifts_per_volume: 3, test_lifts_per_volume: 2}"], "folds.n_folds"),
@@ -168,6 +185,9 @@ def test_plain_snakemake_uses_the_default_profile(tmp_path: Path):
     # a recorded session that is not there: named by the session sheet before any job is planned
     (["drift_session=d2026-01-01"], "WorkflowError in file"),
     (["drift_session=d2026-01-01"], "raw/drift/d2026-01-01: session folder not found (params.yaml drift_session)"),
+    # a session name is one plain folder name under raw/<study>/, never a way out of it
+    (["tool_sessions=[..]"], "invalid parameter at 'tool_sessions.0': '..' is not a plain folder name under raw/<study>/"),
+    (["drift_session=../volume"], "invalid parameter at 'drift_session': '../volume' is not a plain folder name"),
 ])
 def test_bad_config_stops_before_any_job(tmp_path: Path, override, expected):
     wd = copy_project(tmp_path)
@@ -175,6 +195,17 @@ def test_bad_config_stops_before_any_job(tmp_path: Path, override, expected):
     assert proc.returncode != 0
     assert expected in proc.stdout + proc.stderr
     assert not (wd / "results").exists() and not (wd / "raw").exists()
+
+
+def test_a_billion_laughs_params_file_stops_snakemake_in_one_line(tmp_path: Path):
+    """Snakemake itself loads params.yaml (`configfile:`): the Snakefile bounds its aliases first."""
+    wd = copy_project(tmp_path)
+    (wd / "params.yaml").write_text(billion_laughs())
+    proc = subprocess.run([str(BIN / "snakemake"), "-n", "--cores", "2"], cwd=wd, capture_output=True, text=True,
+                          timeout=120, env={**ENV, "PYTHONPATH": str(wd / "src")})
+    assert proc.returncode == 1
+    assert proc.stderr.strip().splitlines() == ["error: params.yaml: its anchors and aliases expand to more than "
+                                                "200,000 nodes (at line 6): refused before loading"], proc.stderr
 
 
 @pytest.mark.extended

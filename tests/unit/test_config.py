@@ -14,6 +14,8 @@ from tactilepipe.core.config import deep_merge
 from tactilepipe.core.errors import ConfigError
 from tactilepipe.pipeline.studies import load_params      # as the workflow validates: every study's checks
 
+from support.hostile import billion_laughs
+
 
 @pytest.fixture(scope="module")
 def raw_params(params_path) -> dict:
@@ -113,6 +115,29 @@ def test_unusable_files(tmp_path, text, problem):
         load_params(path)
     with pytest.raises(ConfigError, match="parameter file not found"):
         load_params(tmp_path / "absent.yaml")
+
+
+# --- aliases: bounded before anything is built -------------------------------------------------------
+
+def test_modest_anchors_load_and_are_counted_expanded():
+    from tactilepipe.core.yamlsafe import expanded_nodes, load_yaml_text
+    text = "base: &b {lr: 0.001, layers: [8, 16]}\na: *b\nb: *b\n"
+    assert expanded_nodes(text, "t.yaml") == 1 + 3 * (1 + 7)            # the root, three keys, three blocks of 7
+    assert load_yaml_text(text, "t.yaml")["b"] == {"lr": 0.001, "layers": [8, 16]}
+
+
+def test_a_billion_laughs_params_file_is_refused_naming_the_file(tmp_path):
+    import time
+    from tactilepipe.core.yamlsafe import expanded_nodes
+    path = tmp_path / "params.yaml"
+    path.write_text(billion_laughs())
+    assert len(path.read_bytes()) < 600
+    start = time.perf_counter()
+    with pytest.raises(ConfigError, match=r"params\.yaml: its anchors and aliases expand to more than 200,000 nodes"):
+        load_params(path)
+    assert time.perf_counter() - start < 5
+    with pytest.raises(ConfigError, match="alias \\*a refers to a node that contains it"):
+        expanded_nodes("a: &a [1, *a]\n", "r.yaml")
 
 
 # --- through the CLI -----------------------------------------------------------------------------

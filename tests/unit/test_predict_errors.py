@@ -75,7 +75,7 @@ def _predict_cli(ckpt, trial, capsys) -> tuple[int, str]:
 
 def test_a_checkpoint_with_nan_weights_is_refused_naming_the_file_and_the_tensor(trial, tmp_path, capsys):
     ckpt = _checkpoint(tmp_path / "nan.pt")
-    raw = torch.load(ckpt, weights_only=False)
+    raw = torch.load(ckpt, weights_only=True)
     name = next(k for k, v in raw["model"].items() if v.is_floating_point() and v.numel() > 3)
     raw["model"][name].view(-1)[:3] = float("nan")
     torch.save(raw, ckpt)

@@ -1,9 +1,10 @@
 """The repository as a newcomer meets it: a short README whose links and promised places exist,
-short library modules whose packages import each other one way only, and no pointer to material
-outside the repository."""
+short library modules whose packages import each other one way only, no torch.load that could run
+a pickle's code, and no pointer to material outside the repository."""
 
 from __future__ import annotations
 
+import ast
 import re
 import subprocess
 
@@ -274,3 +275,44 @@ def test_the_declared_dependencies_admit_the_locked_versions():
         version = locked.get(canonicalize_name(req.name))
         assert version is not None, f"{req.name}: declared in pyproject.toml, not locked in requirements.txt"
         assert req.specifier.contains(version, prereleases=True), f"{req}: the lock has {version}"
+
+
+# Where Python that may read a shared checkpoint lives. A test that deliberately writes a pickle
+# carrying code (to show it is refused) may load it unrestricted once, to prove the payload live.
+CODE_ROOTS = ("src", "benchmarks", "studies", "workflow", "tests")
+CRAFTS_MALICIOUS_PICKLES = {"tests/robustness/test_bounded_inputs.py"}
+
+
+def unrestricted_torch_loads(source: str, name: str) -> list[str]:
+    """``name:line`` of each ``torch.load(...)`` call without ``weights_only=True``: without it a
+    checkpoint is a pickle, and loading one from a shared results folder runs whatever it names."""
+    hits = []
+    for node in ast.walk(ast.parse(source, name)):
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "load"
+                and isinstance(node.func.value, ast.Name) and node.func.value.id == "torch"):
+            safe = any(k.arg == "weights_only" and isinstance(k.value, ast.Constant) and k.value.value is True
+                       for k in node.keywords)
+            if not safe:
+                hits.append(f"{name}:{node.lineno}")
+    return hits
+
+
+def test_every_torch_load_is_restricted_to_weights():
+    hits, scanned = [], 0
+    for root in CODE_ROOTS:
+        for path in sorted((REPO / root).rglob("*.py")):
+            name = path.relative_to(REPO).as_posix()
+            if ".venv" in path.parts or name in CRAFTS_MALICIOUS_PICKLES:
+                continue
+            scanned += 1
+            hits += unrestricted_torch_loads(path.read_text(), name)
+    for path in [REPO / "Snakefile", *(REPO / "workflow").rglob("*.smk")]:     # not Python to ast: by text
+        hits += [f"{path.relative_to(REPO)}: torch.load" for _ in re.findall(r"\btorch\.load\(", path.read_text())]
+    assert scanned > 100, "the scan found almost no Python: its roots moved"
+    assert not hits, f"torch.load without weights_only=True (a checkpoint's pickle could run code): {hits}"
+
+
+def test_the_torch_load_scan_finds_what_it_looks_for():
+    source = ("import torch\na = torch.load(p, weights_only=True)\nb = torch.load(p)\n"
+              "c = torch.load(p, weights_only=False)\nd = torch.load(p, weights_only=flag)\n")
+    assert unrestricted_torch_loads(source, "x.py") == ["x.py:3", "x.py:4", "x.py:5"]

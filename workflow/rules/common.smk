@@ -6,21 +6,19 @@ import sys
 from functools import cache
 from pathlib import Path
 
-import yaml
-
 from tactilepipe.pipeline import codedeps, layout, scenes, stage_rules, studies
 from tactilepipe.pipeline.sessions import SessionSheet
 from tactilepipe.pipeline.stamp_keeper import StampKeeper
 from tactilepipe.core.config import changed_leaves, resolve, typed_like
 from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.core.yamlsafe import load_yaml_file
 from tactilepipe.tool import runs as run_names
 from tactilepipe.tool.scenes import scene_label
 from tactilepipe.tool.sim.background import background_path
 
 # `config` is params.yaml plus any --config overrides; validate and resolve the scale up front
 # so a wrong key or type stops the run before any job starts.
-with open("params.yaml") as _fh:
-    _FILE_PARAMS = yaml.safe_load(_fh)
+_FILE_PARAMS = load_yaml_file("params.yaml")         # its aliases bounded (core/yamlsafe.py)
 config.update(typed_like(config, _FILE_PARAMS))
 # Overrides given with --config are applied after the scale's overlay; a stage receives the result
 # through its parameter stamp (param_stamp), so each sees the same values.
@@ -174,9 +172,9 @@ def run_spec(run):
 
 
 def provenance_args(scene):
-    """`--provenance-stages ... --sessions ...`: provenance.json records their code, parameters, content."""
+    """Stages, sessions and the stamps not in the build's folder (a simulator's): what provenance.json records."""
     stages, dirs = scenes.provenance_stages(scene, SHEET)
-    return "--provenance-stages " + " ".join(stages) + " --sessions " + " ".join(shlex.quote(d) for d in dirs)
+    return shlex.join(["--provenance-stages", *stages, "--sessions", *dirs, "--provenance-stamps", *STAMPS.scale_stamps(stages)])
 
 
 def provenance_inputs(scene):

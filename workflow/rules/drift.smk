@@ -14,7 +14,7 @@ rule drift_report:
         series=f"{DRIFT}/drift_series.csv",
         fits=f"{DRIFT}/fits.csv",
     params:
-        provenance=provenance_args("drift"),
+        provenance=lambda w: provenance_args("drift"),
     resources:
         **rule_resources("drift_report"),
     log:

@@ -74,7 +74,7 @@ rule volume_report:
     output:
         reported(scenes.report_outputs("volume", RESULTS), "volume"),
     params:
-        provenance=provenance_args("volume"),
+        provenance=lambda w: provenance_args("volume"),
     resources:
         **rule_resources("volume_report"),
     log:

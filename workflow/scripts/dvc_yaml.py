@@ -31,6 +31,8 @@ import yaml
 from tactilepipe.pipeline import codedeps, layout
 from tactilepipe.pipeline.stamp_keeper import CONTENT_STAMPS     # the ingest rules' content stamps
 from tactilepipe.core.atomic import write_text
+from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.core.yamlsafe import load_yaml_file
 
 STAGES = [  # (name, Snakemake targets); "{scale}" is written as DVC's ${scale}, "{results}" is the build's folder
     ("volume_simulate", ["raw/volume/sim-{scale}/lifts.csv"]),
@@ -298,7 +300,7 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="dvc.yaml")
     parser.add_argument("--study000", action="store_true", help="only studies/000/dvc.yaml (no Snakemake graph)")
     args = parser.parse_args(argv)
-    params = yaml.safe_load(Path("params.yaml").read_text())
+    params = load_yaml_file("params.yaml")
     targets = [(STUDY000, lambda: study000(params))]
     if not args.study000:
         targets.insert(0, (args.out, lambda: generate(params)))
@@ -318,4 +320,7 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except TactilepipeError as exc:
+        sys.exit(f"dvc_yaml: error: {exc}")

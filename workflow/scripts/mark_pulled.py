@@ -18,7 +18,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-import yaml
+from tactilepipe.core.errors import TactilepipeError
+from tactilepipe.core.yamlsafe import load_yaml_file
 
 
 def run(cmd: list[str]) -> subprocess.CompletedProcess:
@@ -38,15 +39,15 @@ def main() -> int:
         return status.returncode
     changed = json.loads(status.stdout or "{}")
     lock = Path("dvc.lock")
-    built = set(yaml.safe_load(lock.read_text())["stages"]) if lock.exists() else set()
+    built = set(load_yaml_file(lock)["stages"]) if lock.exists() else set()
     stale = {stage: what for stage, what in changed.items() if stage in built}
     if stale:
         print("DVC finds these stages out of date, so nothing is marked up to date:", file=sys.stderr)
         for stage, what in stale.items():
             print(f"  {stage}: {json.dumps(what)}", file=sys.stderr)
         return 1
-    params = yaml.safe_load(Path("params.yaml").read_text())
-    stages = {name: s for name, s in yaml.safe_load(Path("dvc.yaml").read_text())["stages"].items()
+    params = load_yaml_file("params.yaml")
+    stages = {name: s for name, s in load_yaml_file("dvc.yaml")["stages"].items()
               if name in built}   # a stage never built here has nothing to mark
     if not stages:
         print("No stage of dvc.lock to mark up to date.")
@@ -66,4 +67,7 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except TactilepipeError as exc:
+        sys.exit(f"mark_pulled: error: {exc}")

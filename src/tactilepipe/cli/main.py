@@ -48,6 +48,9 @@ def build_parser() -> argparse.ArgumentParser:
     provenance = argparse.ArgumentParser(add_help=False)
     provenance.add_argument("--provenance-stages", nargs="*", default=[], metavar="STAGE",
                             help="pipeline stages whose code and parameters made this scene")
+    provenance.add_argument("--provenance-stamps", nargs="*", default=[], metavar="STAMP",
+                            help="the parameter stamp of a stage of --provenance-stages kept elsewhere than beside "
+                                 "--stamp (a simulator's, in its scale's folder: results/<scale>/params/)")
     provenance.add_argument("--sessions", nargs="*", default=[], help="the scene's input recording sessions")
     sub = parser.add_subparsers(dest="command", required=True, metavar="STAGE")
     add_commands(sub, settings, provenance)

@@ -18,8 +18,12 @@ def write_scene_provenance(args, out_dir: Path) -> None:
     from tactilepipe.pipeline.provenance import write_provenance
     from tactilepipe.pipeline.stamps import TRAIN_STAGE, stamp_values
     if args.stamp:
+        # beside the report's own stamp (results/<build>/params/), but where the workflow names one
+        # elsewhere: a simulator's is its scale's, shared by every build of that scale
         stamps = Path(args.stamp).parent
-        values = {s: _train_values(stamps, getattr(args, "runs", None) or []) if s == TRAIN_STAGE else stamp_values(str(stamps / f"{s}.json"), s)
+        elsewhere = {Path(p).stem: Path(p) for p in getattr(args, "provenance_stamps", None) or []}
+        values = {s: _train_values(stamps, getattr(args, "runs", None) or []) if s == TRAIN_STAGE
+                  else stamp_values(str(elsewhere.get(s, stamps / f"{s}.json")), s)
                   for s in args.provenance_stages}
     else:
         resolved = load_params(args.params, param_overrides(args))

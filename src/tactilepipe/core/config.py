@@ -29,6 +29,7 @@ import jsonschema
 import yaml
 
 from tactilepipe.core.errors import ConfigError
+from tactilepipe.core.yamlsafe import load_yaml_text
 
 PARAMS_SCHEMA = files("tactilepipe.core") / "params.schema.json"
 DEFAULT_PARAMS = Path("params.yaml")
@@ -84,13 +85,13 @@ def _typed(value, ref):
         return [_typed(v, ref[0]) for v in value]
     if isinstance(value, str) and isinstance(ref, str) and value.lstrip().startswith("["):
         try:                                   # a list where params.yaml has a word ("variants: all")
-            parsed = yaml.safe_load(value)
+            parsed = load_yaml_text(value, "--config value")
         except yaml.YAMLError:
             return value
         return parsed if isinstance(parsed, list) else value
     if isinstance(value, str) and ref is not None and not isinstance(ref, str):
         try:
-            parsed = yaml.safe_load(value)
+            parsed = load_yaml_text(value, "--config value")
         except yaml.YAMLError:
             return value                       # left as text: validation names the key and the type
         if isinstance(parsed, str) and isinstance(ref, (int, float)) and not isinstance(ref, bool):
@@ -104,6 +105,8 @@ def _typed(value, ref):
 
 def _format_error(err: jsonschema.ValidationError, source: str) -> str:
     where = ".".join(str(p) for p in err.absolute_path) or "(top level)"
+    if err.validator == "pattern" and isinstance(err.schema, dict) and err.schema.get("description"):
+        return f"{source}: invalid parameter at '{where}': {err.instance!r} is not {err.schema['description']}"
     return f"{source}: invalid parameter at '{where}': {err.message}"
 
 
@@ -194,7 +197,7 @@ def load_params(path: str | Path = DEFAULT_PARAMS, overrides: dict | None = None
     ``checks`` (see `resolve`)."""
     path = Path(path)
     try:
-        raw = yaml.safe_load(path.read_text())
+        raw = load_yaml_text(path.read_text(), str(path))
     except FileNotFoundError:
         raise ConfigError(f"{path}: parameter file not found") from None
     except UnicodeDecodeError as exc:

@@ -6,11 +6,12 @@ from __future__ import annotations
 from pathlib import Path
 
 from tactilepipe.core.errors import InputError
+from tactilepipe.core.rawfile import TABLE_MAX, read_raw_bytes
 
 
 def read_text_table(path: str | Path, what: str) -> str:
     path = Path(path)
-    raw = path.read_bytes()
+    raw = read_raw_bytes(path, TABLE_MAX, what)
     try:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:

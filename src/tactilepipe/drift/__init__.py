@@ -17,6 +17,7 @@ import re
 from pathlib import Path
 
 from tactilepipe.core.errors import InputError
+from tactilepipe.core.rawfile import META_MAX, read_raw_text
 
 RUNS = ("unloaded", "loaded")
 RECORDING_SUFFIXES = (".bag", ".parquet")
@@ -45,7 +46,7 @@ def read_session_meta(path: str | Path) -> dict:
     and the problem when it is missing, unreadable or the weight is not a number >= 0."""
     path = Path(path)
     try:
-        meta = json.loads(path.read_text(encoding="utf-8-sig"))
+        meta = json.loads(read_raw_text(path, META_MAX, "session.json", encoding="utf-8-sig"))
     except FileNotFoundError:
         raise InputError(path, 'missing: a drift session states its reference weight here, e.g. '
                                '{"reference_load_g": 500}') from None

@@ -8,6 +8,7 @@ from rosbags.rosbag1 import Reader, Writer
 
 from tactilepipe.core.atomic import atomic_path
 from tactilepipe.core.errors import InputError
+from tactilepipe.core.rawfile import BAG_MAX, check_raw_file
 from tactilepipe.papillarray.messages import typestore
 
 
@@ -80,7 +81,7 @@ def read_topics(path: str | Path, wanted: dict[str, str]) -> dict[str, tuple[lis
     path = Path(path)
     if not path.exists():
         raise InputError(path, "bag file not found")
-    if path.stat().st_size == 0:
+    if check_raw_file(path, BAG_MAX, "ROS1 bag") == 0:
         raise InputError(path, "bag file is empty")
     out: dict[str, tuple[list[int], list[bytes]]] = {}
     try:

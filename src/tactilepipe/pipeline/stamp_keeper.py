@@ -55,6 +55,10 @@ class StampKeeper:
         folder = self.scale_params_dir if stage in SCALE_STAGES else self.params_dir
         return self._current(folder, f"{stage}.json", text)
 
+    def scale_stamps(self, stages) -> list[str]:
+        """The stamps of those of ``stages`` kept in the scale's folder rather than the build's."""
+        return [self.stage(s) for s in stages if s in SCALE_STAGES]
+
     def run(self, run: str) -> str:
         """A training job's own stamp: the tool-train stage's keys and the run's definition
         (tool/runs.py), so a key only some runs read, or a new variant, re-runs only those."""

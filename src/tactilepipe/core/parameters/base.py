@@ -44,8 +44,12 @@ class RequiredKeys:
 UniqueList = Annotated[list[T], UniqueItems()]
 Pair = Annotated[list[T], Field(min_length=2, max_length=2)]      # a low-high range, or one per sensor
 Triple = Annotated[list[T], Field(min_length=3, max_length=3)]    # one per axis or channel
-# A session folder's name; "{scale}" in it is replaced by the scale.
-SessionName = Annotated[str, Field(pattern=r"^[A-Za-z0-9_.{}-]+$")]
+# A session folder's name; "{scale}" in it is replaced by the scale. One plain name under
+# raw/<study>/: never "." or ".." (nor any name of dots only) or a path, which would read
+# recordings from outside the study's folder.
+SessionName = Annotated[str, Field(pattern=r"^[A-Za-z0-9_.{}-]*[A-Za-z0-9_{}-][A-Za-z0-9_.{}-]*$",
+                                   description="a plain folder name under raw/<study>/: letters, digits, '-', '_', "
+                                               "'.' (not only dots), no '/'")]
 # A build's folder name under results/; "{scale}" in it is replaced by the scale. No dots: a build
 # is one folder, never "." or ".." or a path.
 BuildName = Annotated[str, Field(pattern=r"^([A-Za-z0-9_-]|\{scale\})+$")]

@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from tactilepipe.core.errors import InputError
+from tactilepipe.core.rawfile import IMAGE_MAX, read_raw_bytes
 
 JPEG_START, JPEG_END = b"\xff\xd8", b"\xff\xd9"
 PNG_START, PNG_END = b"\x89PNG\r\n\x1a\n", b"IEND"
@@ -36,7 +37,7 @@ def read_image(path: str | Path, flags: int = cv2.IMREAD_UNCHANGED, record: str 
     """Decode one image file; InputError for a missing, unreadable or truncated one."""
     path = Path(path)
     try:
-        data = path.read_bytes()
+        data = read_raw_bytes(path, IMAGE_MAX, "camera frame")
     except FileNotFoundError:
         raise InputError(path, "unreadable or missing image (no such file)", record) from None
     problem = truncation(data)

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from tactilepipe.core.errors import InputError
+from tactilepipe.core.rawfile import META_MAX, TABLE_MAX, read_raw_bytes, read_raw_text
 
 SENSORS = ("digit_left", "digit_right")
 FRAME_W, FRAME_H = 240, 320          # portrait QVGA, as digit-interface returns it
@@ -85,7 +86,7 @@ class TrialMeta:
     def read(cls, trial_dir: str | Path) -> "TrialMeta":
         path = Path(trial_dir) / "meta.json"
         try:
-            raw = json.loads(path.read_text())
+            raw = json.loads(read_raw_text(path, META_MAX, "trial's meta.json"))
         except FileNotFoundError:
             raise InputError(path, "missing: every trial needs meta.json") from None
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
@@ -145,10 +146,11 @@ def read_frame_index(sensor_dir: str | Path) -> np.ndarray:
     path = Path(sensor_dir) / "frames.csv"
     if not path.exists():
         raise InputError(path, "missing: every sensor folder needs frames.csv (frame,host_ns)")
+    data = read_raw_bytes(path, TABLE_MAX, "frames.csv")
     try:
-        lines = path.read_bytes().removeprefix(b"\xef\xbb\xbf").decode("ascii").split("\n")   # BOM: a spreadsheet
+        lines = data.removeprefix(b"\xef\xbb\xbf").decode("ascii").split("\n")   # BOM: a spreadsheet
     except UnicodeDecodeError as exc:
-        line = path.read_bytes()[:exc.start].count(b"\n") + 1
+        line = data[:exc.start].count(b"\n") + 1
         raise InputError(path, f"non-ASCII byte 0x{exc.object[exc.start]:02x}: not a frames.csv written by the rig",
                          f"line {line}") from None
     lines = [ln.removesuffix("\r") for ln in lines]
@@ -185,7 +187,7 @@ def write_calibration(path: str | Path, matrix: np.ndarray, serial: str = "FT-SI
 def read_calibration(path: str | Path) -> np.ndarray:
     path = Path(path)
     try:
-        root = ET.parse(path).getroot()
+        root = ET.fromstring(read_raw_bytes(path, META_MAX, "calibration file"))
     except FileNotFoundError:
         raise InputError(path, "missing: the session needs the Nano17 calibration file") from None
     except ET.ParseError as exc:

@@ -24,6 +24,7 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from tactilepipe.core.errors import ArgumentError, InputError
+from tactilepipe.core.rawfile import TABLE_MAX, read_raw_text
 from tactilepipe.tool.formats.imagefile import read_image
 
 KIND_DIRS = {"normal": "data_normal", "shear": "data_shear"}
@@ -74,7 +75,7 @@ def _indexed(folder: Path, pattern: re.Pattern, what: str) -> dict[int, Path]:
 
 def _parse_force(path: Path, kind: str) -> np.ndarray:
     try:
-        text = path.read_text()
+        text = read_raw_text(path, TABLE_MAX, "force file")
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(path, f"unreadable force file: {exc}") from None
     lines = [ln for ln in text.splitlines() if ln.strip()]

@@ -27,6 +27,7 @@ import numpy as np
 from rosbags.typesys import Stores, get_typestore
 
 from tactilepipe.core.errors import ArgumentError, InputError
+from tactilepipe.core.rawfile import BAG_MAX, META_MAX, check_raw_file, read_raw_text
 from tactilepipe.tool.formats.imagefile import decode
 from tactilepipe.tool.formats.native_layout import TrialMeta
 from tactilepipe.tool.formats.raw import SENSORS, RawTrial, SensorFrames
@@ -97,7 +98,7 @@ def read_sidecar_meta(bag_path: str | Path) -> dict:
     """
     path = sidecar_path(bag_path)
     try:
-        raw = json.loads(path.read_text())
+        raw = json.loads(read_raw_text(path, META_MAX, "bag's metadata sidecar"))
     except FileNotFoundError:
         raise InputError(path, "missing: a ROS bag trial needs a metadata sidecar next to "
                                f"{Path(bag_path).name}") from None
@@ -130,7 +131,7 @@ def _bag_kind(path: Path) -> str:
         if not (path / "metadata.yaml").is_file():
             raise InputError(path, "directory is not a ROS2 bag (no metadata.yaml)")
         return "ros2"
-    if path.stat().st_size == 0:
+    if check_raw_file(path, BAG_MAX, "ROS bag") == 0:
         raise InputError(path, "bag file is empty")
     if path.suffix in (".db3", ".mcap"):
         return "ros2"

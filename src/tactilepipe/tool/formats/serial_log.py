@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from tactilepipe.core.errors import InputError
+from tactilepipe.core.rawfile import FORCE_LOG_MAX, read_raw_bytes
 from tactilepipe.tool.formats.native_layout import ADC_COUNTS, SERIAL_HEADER
 
 N_CHANNELS = 6
@@ -89,7 +90,7 @@ def parse_line(text: str) -> tuple[int, list[int]] | str:
 def read_serial_log(path: str | Path, max_drop_fraction: float = 0.2) -> SerialLog:
     path = Path(path)
     try:
-        data = path.read_bytes()
+        data = read_raw_bytes(path, FORCE_LOG_MAX, "force.log")
     except FileNotFoundError:
         raise InputError(path, "missing: every trial needs the Arduino's force.log") from None
     # lines end at b"\n" only (str.splitlines would also split at stray \x0b, \x1c... bytes,

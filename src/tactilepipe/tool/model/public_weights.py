@@ -20,6 +20,7 @@ whole data set) or shear force in N, unnormalised.
 
 from __future__ import annotations
 
+import pickle
 import re
 from pathlib import Path
 
@@ -42,8 +43,15 @@ def read_state(path: Path):
         return torch.load(path, map_location="cpu", weights_only=True)
     except FileNotFoundError:
         raise InputError(path, "checkpoint not found") from None
+    except pickle.UnpicklingError as exc:         # torch's paragraph suggests loading it unrestricted: never
+        found = re.search(r"Unsupported global: GLOBAL (\S+)", str(exc))
+        if found:
+            raise InputError(path, f"refused: not a checkpoint of tensors and plain values (it calls "
+                                   f"{found.group(1)}); a pickle like this can run code, so it is not loaded") from None
+        detail = " ".join(str(exc).split("WeightsUnpickler error:")[-1].split("Check the documentation")[0].split())
+        raise InputError(path, f"cannot read checkpoint (UnpicklingError: {detail})") from None
     except Exception as exc:                      # truncated or foreign file
-        raise InputError(path, f"cannot read checkpoint ({type(exc).__name__}: {exc})") from None
+        raise InputError(path, f"cannot read checkpoint ({type(exc).__name__}: {' '.join(str(exc).split())})") from None
 
 
 def _unwrap(state) -> dict:

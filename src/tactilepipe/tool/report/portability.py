@@ -44,8 +44,10 @@ REAL, EMULATED = "real", "emulated"
 
 
 def weights_digest(checkpoint: Path) -> str:
-    import torch
-    state = torch.load(checkpoint, map_location="cpu", weights_only=False)["model"]
+    # the training stage's own loader: tensors and plain containers only, so a shared results
+    # folder's best.pt cannot run code when it is read
+    from tactilepipe.tool.model.checkpoint import load_checkpoint
+    state = load_checkpoint(checkpoint)["model"]
     h = hashlib.sha256()
     for name, tensor in state.items():
         t = tensor.detach().contiguous()
