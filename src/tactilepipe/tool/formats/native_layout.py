@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from tactilepipe.core.errors import InputError
+from tactilepipe.tool.formats.calibration_structure import AXES, RATED_RANGE, check_structure
 
 SENSORS = ("digit_left", "digit_right")
 FRAME_W, FRAME_H = 240, 320          # portrait QVGA, as digit-interface returns it
@@ -40,16 +41,14 @@ FRAME_W, FRAME_H = 240, 320          # portrait QVGA, as digit-interface returns
 DIGIT_SIZES = ((320, 240), (240, 320), (640, 480), (480, 640))
 ADC_COUNTS, ADC_VOLTS = 1023, 5.0
 ADC_ZERO_V = 2.5
-AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 # ATI's unit names in a .cal file, as factors to N and N·mm (the units the pipeline works in)
 FORCE_UNITS = {"N": 1.0, "kN": 1000.0, "lbf": 4.4482216152605, "klbf": 4448.2216152605, "Klbf": 4448.2216152605,
                "g": 0.00980665, "kg": 9.80665, "kgf": 9.80665}
 TORQUE_UNITS = {"N-mm": 1.0, "N-m": 1000.0, "kN-m": 1e6, "lbf-in": 112.98482933, "lbf-ft": 1355.8179483,
                 "klbf-in": 112984.82933, "Klbf-in": 112984.82933, "kgf-cm": 98.0665, "g-cm": 0.0980665}
-# The Nano17 SI-25-0.25's rated ranges (ATI): Fx, Fy ±25 N, Fz ±35 N, torques ±250 N·mm. A matrix
-# must map the ADC's whole span (5 V) to forces between a quarter and a hundred times these:
+# The Nano17 SI-25-0.25's rated ranges (ATI; RATED_RANGE): Fx, Fy ±25 N, Fz ±35 N, torques ±250 N·mm.
+# A matrix must map the ADC's whole span (5 V) to forces between a quarter and a hundred times these:
 # beyond, a cell is out by orders of magnitude (a typo, another unit, another sensor's file).
-RATED_RANGE = np.array([25.0, 25.0, 35.0, 250.0, 250.0, 250.0])
 SPAN_FACTORS = (0.25, 100.0)
 MAX_CONDITION = 1e4                  # the simulated sessions' matrices: ~11
 FRAME_NAME = "frame_{:06d}.png"
@@ -218,6 +217,7 @@ def read_calibration(path: str | Path) -> np.ndarray:
     _check_cells(path, matrix, factors)
     matrix = matrix * factors[:, None]
     _check_matrix(path, matrix)
+    check_structure(path, matrix)           # a cell off by 10x against the other rows, a transposed matrix
     return matrix
 
 
