@@ -4,7 +4,8 @@
       nano17.cal                  ATI calibration (XML; UserAxis rows: N per V for the 6 gauges)
       <trial>/
         meta.json                 tool, grasp pose, trial kind (see TrialMeta)
-        digit_left/frames.csv     frame,host_ns     (host clock, one row per frame)
+        digit_left/frames.csv     frame,host_ns     (host clock, one row per frame; the numbers skip the
+                                                    frames the camera dropped, which have no PNG)
         digit_left/frame_000000.png ...             BGR uint8, portrait 240 wide x 320 high (QVGA; VGA
                                                     and landscape frames are read too: DIGIT_SIZES)
         digit_right/...           same for the other finger
@@ -140,7 +141,14 @@ def check_tool_name(tool: str, where, record: str | None = None) -> None:
 
 
 def read_frame_index(sensor_dir: str | Path) -> np.ndarray:
-    """host_ns of every frame (frame numbers must be 0..n-1 in order, stamps increasing)."""
+    """host_ns of every frame frames.csv lists (see read_frame_table)."""
+    return read_frame_table(sensor_dir)[1]
+
+
+def read_frame_table(sensor_dir: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """(frame numbers, host_ns) of every frame frames.csv lists. The numbers increase and may skip
+    (the camera dropped those frames: no row, no PNG); a number listed twice or going back, or
+    stamps that do not increase, are refused."""
     path = Path(sensor_dir) / "frames.csv"
     if not path.exists():
         raise InputError(path, "missing: every sensor folder needs frames.csv (frame,host_ns)")
@@ -155,20 +163,25 @@ def read_frame_index(sensor_dir: str | Path) -> np.ndarray:
         lines.pop()
     if not lines or lines[0].strip() != "frame,host_ns":
         raise InputError(path, "header must be 'frame,host_ns'", "line 1")
+    numbers = np.empty(len(lines) - 1, np.int64)
     stamps = np.empty(len(lines) - 1, np.int64)
     for i, line in enumerate(lines[1:]):
         parts = [p.strip() for p in line.split(",")]
         if len(parts) != 2 or not _UINT.match(parts[0]) or not _INT.match(parts[1]):
             raise InputError(path, f"expected 'frame,host_ns' integers, got {line!r}", f"line {i + 2}")
-        if int(parts[0]) != i:
-            raise InputError(path, f"frame number {parts[0]} out of sequence (expected {i})", f"line {i + 2}")
+        number = int(parts[0])
+        if number >= 10 ** 6:                    # FRAME_NAME's six digits: 9 hours at 30 fps
+            raise InputError(path, f"frame number {number} is beyond 999999 (frame_NNNNNN.png)", f"line {i + 2}")
+        if i and number <= numbers[i - 1]:
+            how = "listed twice" if number == numbers[i - 1] else f"out of order (after {numbers[i - 1]})"
+            raise InputError(path, f"frame number {number} {how}: frame numbers must increase", f"line {i + 2}")
         if not -2**63 < int(parts[1]) < 2**63:
             raise InputError(path, f"host_ns {parts[1]} does not fit in 64 bits", f"line {i + 2}")
-        stamps[i] = int(parts[1])
+        numbers[i], stamps[i] = number, int(parts[1])
     if len(stamps) and (np.diff(stamps) <= 0).any():
         k = int(np.argmax(np.diff(stamps) <= 0)) + 1
         raise InputError(path, "frame timestamps do not increase (clock jump or duplicate)", f"line {k + 2}")
-    return stamps
+    return numbers, stamps
 
 
 def write_calibration(path: str | Path, matrix: np.ndarray, serial: str = "FT-SIM-0001") -> None:
