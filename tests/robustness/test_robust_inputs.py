@@ -16,7 +16,8 @@ from tactilepipe.tool.formats.trials import open_trial
 from tactilepipe.tool.data.ingest import ingest_trial
 from tactilepipe.tool.report.data import qc_markdown
 
-from support.sessions import INGEST, N_FRAMES, SIZE, SYNC, digit_frame, make_native_session, make_public_session
+from support.sessions import (INGEST, N_FRAMES, SIZE, SYNC, digit_frame, finger_frame, make_native_session,
+                              make_public_session)
 from support.project import REPO
 
 
@@ -33,7 +34,7 @@ def public(tmp_path):
 def test_a_vga_native_trial_is_read(native, tmp_path):
     for s in ("digit_left", "digit_right"):
         for i in range(N_FRAMES):
-            cv2.imwrite(str(native / s / f"frame_{i:06d}.png"), digit_frame(i, 640, 480))
+            cv2.imwrite(str(native / s / f"frame_{i:06d}.png"), finger_frame(s, digit_frame(i, 640, 480)))
     info = ingest_trial(open_trial(native, "native"), tmp_path / "s.parquet", SIZE, INGEST)
     assert info["frame_size"] == {"digit_left": [480, 640], "digit_right": [480, 640]}
 

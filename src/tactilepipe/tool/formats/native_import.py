@@ -49,6 +49,30 @@ def _sensor_frames(sensor_dir: Path) -> tuple[SensorFrames, int, int]:
     return SensorFrames(stamps, lambda i: read_bgr(paths[i]), [str(p) for p in paths], numbers), extra, skipped
 
 
+# Two DIGITs are stamped by their own capture threads and never deliver the same bytes: a trial
+# whose fingers share more than this share of their stamps, or of their frame files byte for
+# byte, holds one camera's frames twice (a folder copied, one device path given for both)
+SAME_CAMERA_SHARE = 0.5
+
+
+def _check_two_cameras(trial_dir: Path, frames: dict[str, SensorFrames]) -> None:
+    """InputError when digit_left and digit_right hold one camera's frames: their frames.csv share
+    most stamps, or their frame files are byte-identical for most frames (compared where the
+    sizes agree, which two cameras' PNGs almost never do)."""
+    left, right = (frames[s] for s in SENSORS)
+    n = min(len(left), len(right))
+    shared = int(np.isin(left.host_ns, right.host_ns).sum())
+    files = {name: dict(zip(f.numbers.tolist(), map(Path, f.source))) for name, f in zip(SENSORS, (left, right))}
+    pairs = [(a, files[SENSORS[1]][k]) for k, a in files[SENSORS[0]].items() if k in files[SENSORS[1]]]
+    same = sum(1 for a, b in pairs if a.stat().st_size == b.stat().st_size and a.read_bytes() == b.read_bytes())
+    found = [f"{shared} of {n} frames.csv stamps are the same"] if shared > SAME_CAMERA_SHARE * n else []
+    found += [f"{same} of {n} frame files are byte-identical"] if same > SAME_CAMERA_SHARE * n else []
+    if found:
+        raise InputError(trial_dir, f"digit_left and digit_right hold one camera's frames ({' and '.join(found)}): "
+                                    f"each finger's folder must come from its own DIGIT (one device given for both, "
+                                    f"or a folder copied over the other?)")
+
+
 def read_native_trial(trial_dir: str | Path, bias_window_s: float = 0.5) -> RawTrial:
     trial_dir = Path(trial_dir)
     session_dir = trial_dir.parent
@@ -58,6 +82,7 @@ def read_native_trial(trial_dir: str | Path, bias_window_s: float = 0.5) -> RawT
         if not (trial_dir / sensor).is_dir():
             raise InputError(trial_dir / sensor, "missing sensor folder")
         frames[sensor], extra[sensor], skipped[sensor] = _sensor_frames(trial_dir / sensor)
+    _check_two_cameras(trial_dir, frames)
     log = read_serial_log(trial_dir / "force.log")
     matrix = read_calibration(session_dir / "nano17.cal")
     rest = log.arduino_ms <= log.arduino_ms[0] + bias_window_s * 1000
