@@ -2,18 +2,18 @@
 rows have been judged alone (tool/formats/native_layout.py, read_calibration).
 
 Two facts hold for every Nano17 matrix, whatever its gauge layout (ATI's three beams, where a row
-draws on two to five gauges, or the simulator's one gauge per axis) and whatever tool transform
-ATI folded into its torque rows:
+draws on two to five gauges, or the simulator's one gauge per axis), with the tool offset ATI folds
+into its torque rows (its files' own 6.1 mm):
 
 - Units belong to rows: a row is N (or N·mm) per volt of gauge signal. Scaled by the axis's rated
   range (±25, ±25, ±35 N, ±250 N·mm), every row reaches its rated range at a similar gauge signal:
-  the gauges and their amplifiers are alike (ATI's files: within a factor 2 of each other; the
-  simulator's: within 10%). A row whose largest cell makes it reach its range at 10x less (or
+  the gauges and their amplifiers are alike (ATI's files: within a factor of about 2 of each other;
+  the simulator's: within 10%). A row whose largest cell makes it reach its range at 10x less (or
   more) signal than the others holds a cell off by 10x, a shifted decimal point.
-- Transposed, the torque rows' scale moves into the columns of gauges 4-6: per unit of rated
+- Transposed, the torque rows become the columns of gauges 4-6: per unit of rated
   range, the force rows then draw on gauges 4-6 about (250/25)² = 100x more than the torque rows
-  on gauges 1-3; in a matrix the right way round the two are within a factor 5 (2,000 simulated
-  sessions: at most 4.1; ATI's layout: about 1.4).
+  on gauges 1-3; in a matrix the right way round the two are within a factor 5 (2,000 seeds of the
+  simulator: at most 4.1, transposed at least 19; ATI's layout: about 1.4, transposed 30-70).
 
 Not seen: a cell off by 10x that neither sets its row's scale nor crosses the blocks (a cross-talk
 cell x10, or /10 of one of several similar cells of an ATI row): its labels move by a share of one
