@@ -9,6 +9,7 @@ import dataclasses
 import io
 import json
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -268,3 +269,72 @@ def test_a_trial_or_session_name_that_is_a_path_is_refused(rig, tmp_path, flag, 
     err = capsys.readouterr().err
     assert status == 2 and ("a name is letters, digits, _ - and ." in err or "without '..'" in err), err
     assert not any(tmp_path.rglob("escaped*")) and not (tmp_path / "raw").exists()
+
+
+@pytest.mark.parametrize("value", ["-5", "0", "nan", "inf"])
+def test_record_refuses_a_length_that_is_not_positive_and_finite_before_anything_is_written(rig, tmp_path, value,
+                                                                                            capsys, monkeypatch):
+    from tactilepipe.cli.main import main
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exit_:
+        main(["record", "--session", "raw/tool/lab-5", "--left", rig["sources"]["digit_left"], "--right",
+              rig["sources"]["digit_right"], "--port", "/dev/null", "--calibration", str(rig["root"] / "nano17.cal"),
+              "--tool", "knife", "--kind", "normal", "--seconds", value, "--no-prompt"])
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and f"argument --seconds: {value} is not a length: give a finite number of " \
+                                      f"seconds above 0" in err.splitlines()[-1], err
+    assert not (tmp_path / "raw").exists()
+
+
+def test_record_refuses_one_camera_for_both_fingers(rig, tmp_path, capsys, monkeypatch):
+    from tactilepipe.cli.main import main
+    monkeypatch.chdir(tmp_path)
+    status = main(["record", "--session", "raw/tool/lab-6", "--left", rig["sources"]["digit_left"], "--right",
+                   rig["sources"]["digit_left"], "--port", "/dev/null", "--calibration",
+                   str(rig["root"] / "nano17.cal"), "--tool", "knife", "--kind", "normal", "--seconds", "1",
+                   "--no-prompt"])
+    err = capsys.readouterr().err
+    assert status == 2 and "--left and --right are the same camera" in err and len(err.strip().splitlines()) == 1, err
+    assert not list((tmp_path / "raw" / "tool" / "lab-6").glob("knife*"))
+
+
+def _live(rig, tmp_path, *extra: str, sources=None) -> subprocess.CompletedProcess:
+    sources = sources or rig["sources"]
+    ckpt = tmp_path / "model.pt" if (tmp_path / "model.pt").exists() else _random_checkpoint(tmp_path / "model.pt")
+    return _cli("live", "--checkpoint", str(ckpt), "--left", sources["digit_left"], "--right",
+                sources["digit_right"], "--mode", "qvga30", "--seconds", "20", "--log",
+                str(tmp_path / "live" / "estimates.csv"), *extra)
+
+
+def _one_line(proc: subprocess.CompletedProcess) -> str:
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    lines = [ln for ln in proc.stderr.strip().splitlines() if not ln.startswith(("keep the fingers", "reference pair"))]
+    assert len(lines) == 1, proc.stderr
+    return lines[0]
+
+
+def test_live_refuses_one_camera_for_both_fingers_and_an_inverted_label_range(rig, tmp_path):
+    same = _live(rig, tmp_path, sources={s: rig["sources"]["digit_left"] for s in SENSORS})
+    assert "--left and --right are the same camera" in _one_line(same)
+    inverted = _live(rig, tmp_path, "--label-range", "30", "0")
+    assert "--label-range 30 0: give MIN_N then MAX_N, MIN_N below MAX_N" in _one_line(inverted)
+    nan = _live(rig, tmp_path, "--label-range", "0", "nan")
+    assert nan.returncode == 2 and "argument --label-range: nan is not a finite number" in nan.stderr
+
+
+def test_live_refuses_a_reference_that_is_not_two_bgr_frames(rig, tmp_path):
+    frame = cv2.imread(rig["sources"]["digit_left"] % 0)
+    np.savez(tmp_path / "reference.npz", digit_left=frame.astype(np.float64) / 255, digit_right=frame / 255.0)
+    line = _one_line(_live(rig, tmp_path, "--reference", str(tmp_path / "reference.npz")))
+    assert f"{tmp_path / 'reference.npz'}: digit_left is float64 of shape" in line and "not a BGR uint8 frame" in line
+
+
+def test_live_stops_on_a_resolution_change_mid_stream_naming_the_camera(rig, tmp_path):
+    changed = tmp_path / "changed"
+    shutil.copytree(Path(rig["sources"]["digit_right"]).parent, changed)
+    for png in sorted(changed.glob("frame_*.png"))[20:]:                 # the stream turns VGA at frame 20
+        cv2.imwrite(str(png), cv2.resize(cv2.imread(str(png)), (640, 480)))
+    line = _one_line(_live(rig, tmp_path, sources={"digit_left": rig["sources"]["digit_left"],
+                                                   "digit_right": str(changed / "frame_%06d.png")}))
+    assert re.search(r"digit_right: frame \d+ is 480x640, its reference frame was 240x320: the resolution changed "
+                     r"mid-stream", line), line

@@ -136,6 +136,18 @@ def test_fx_and_fz_swapped_in_the_calibration_are_named_by_the_force_direction(l
     assert len(proc.stderr.strip().splitlines()) == 1 and "witness 'force direction'" in proc.stderr
 
 
+def test_a_calibration_cell_x10_refuses_the_trial_naming_nano17_cal_and_the_cell(lab, tmp_path):
+    """Fz's gauge cell x10 would make every press read 10x (50-66 N here): tool-ingest refuses the
+    trial in one line naming the session's nano17.cal and the cell."""
+    name, trial = _faulty(lab, tmp_path)
+    cell = fault.calibration_cell(trial.parent, "Fz", 10.0)
+    proc = cli("tool-ingest", *CLI_PARAMS, str(trial), "--format", "native", "--out", str(tmp_path / "t.parquet"))
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr, proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert str(trial.parent / "nano17.cal") in proc.stderr and f"cell {cell} (" in proc.stderr, proc.stderr
+    assert "~10x" in proc.stderr and not (tmp_path / "t.parquet").exists()
+
+
 @pytest.mark.parametrize("declare", [False, True], ids=["declared_30", "declared_60"])
 def test_frames_stamped_at_60_fps_over_30_fps_frames_are_named(lab, tmp_path, declare):
     name, trial = _faulty(lab, tmp_path)

@@ -37,6 +37,12 @@ def digit_frame(i: int, h: int = FRAME_H, w: int = FRAME_W) -> np.ndarray:
     return np.clip(img, 0, 255).astype(np.uint8)
 
 
+def finger_frame(sensor: str, img: np.ndarray) -> np.ndarray:
+    """The frame as the named finger's own DIGIT shows it: the right one mirrored (two cameras never
+    deliver the same bytes; the importer refuses one camera's frames given for both fingers)."""
+    return img if sensor == "digit_left" else np.ascontiguousarray(img[:, ::-1])
+
+
 def noisy(img: np.ndarray, seed: int = 0) -> np.ndarray:
     """A frame with camera noise (JPEGs of noise-free synthetic frames decode differently when cut)."""
     return np.clip(img + np.random.default_rng(seed).normal(0, 5, img.shape), 0, 255).astype(np.uint8)
@@ -58,8 +64,8 @@ def make_native_session(root: Path) -> Path:
         (trial / s).mkdir(parents=True)
         rows = ["frame,host_ns"]
         for i in range(N_FRAMES):
-            cv2.imwrite(str(trial / s / f"frame_{i:06d}.png"), digit_frame(i))
-            rows.append(f"{i},{START_NS + i * 33_333_333}")
+            cv2.imwrite(str(trial / s / f"frame_{i:06d}.png"), finger_frame(s, digit_frame(i)))
+            rows.append(f"{i},{START_NS + i * 33_333_333 + (3_000_000 if s == 'digit_right' else 0)}")
         (trial / s / "frames.csv").write_text("\n".join(rows) + "\n")
     write_serial(trial / "force.log", serial_lines())
     TrialMeta(trial="t00", tool="screwdriver_1", kind="normal", orientation_deg=5.0, insertion_mm=14.0).write(trial)

@@ -1,6 +1,6 @@
 """Faults of a real rig's force chain, injected into a native trial as the rig would have recorded
 them: an ADC reference other than 5 V, a gauge amplifier's gain, a zero taken off true zero, rows
-of nano17.cal swapped or negated, frames.csv stamped at another rate. Each rewrites the trial's
+of nano17.cal swapped or negated, a cell of it x10, frames.csv stamped at another rate. Each rewrites the trial's
 own files (or its own session's nano17.cal), nothing else."""
 
 from __future__ import annotations
@@ -63,6 +63,17 @@ def calibration_rows(session: Path, swap: tuple[str, str] | None = None, negate:
         matrix[layout.AXES.index(negate)] *= -1
     layout.write_calibration(session / "nano17.cal", matrix)
     return matrix
+
+
+def calibration_cell(session: Path, axis: str, factor: float) -> str:
+    """Rewrite the session's nano17.cal with the row's largest cell times ``factor`` (a shifted
+    decimal point); returns the cell's name, e.g. "Fz,g3"."""
+    matrix = layout.read_calibration(session / "nano17.cal")
+    i = layout.AXES.index(axis)
+    j = int(np.argmax(np.abs(matrix[i])))
+    matrix[i, j] *= factor
+    layout.write_calibration(session / "nano17.cal", matrix)
+    return f"{axis},g{j + 1}"
 
 
 def frame_rate(trial: Path, factor: float, declare: bool = False) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -23,6 +24,36 @@ MODE_NAMES = ("qvga60", "qvga30", "vga30", "vga15")
 DEFAULT_BAUD = 115200
 
 
+def seconds(text: str) -> float:
+    """--seconds: a finite length above 0 (a negative or NaN one would record a trial of nothing)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text} is not a length: give a finite number of seconds above 0")
+    return value
+
+
+def finite(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text} is not a finite number")
+    return value
+
+
+def two_cameras(left: str, right: str) -> tuple[str, str]:
+    """The two fingers' sources (after a serial number is resolved to its node): one camera given
+    for both would record (or estimate on) one finger's view twice."""
+    if Path(left).resolve() == Path(right).resolve():
+        from tactilepipe.core.errors import ArgumentError
+        raise ArgumentError(f"--left and --right are the same camera ({left}): each finger needs its own DIGIT")
+    return left, right
+
+
 @command("record", "record trials in the rig's layout from two DIGITs and the Nano17's Arduino",
          description="Record one trial, or a series with a prompt between trials, into SESSION (raw/tool/<session>/, "
                      "the rig's layout: docs/rig.md). A trial that stops half-way is set aside under "
@@ -41,7 +72,7 @@ DEFAULT_BAUD = 115200
                arg("--orientation-deg", type=float, default=0.0, help="tilt of the tool axis in the grasp"),
                arg("--insertion-mm", type=float, default=0.0,
                    help="mm from the gel's fingertip edge to the butt end of the handle"),
-               arg("--seconds", type=float, help="length of each trial"),
+               arg("--seconds", type=seconds, help="length of each trial"),
                arg("--trials", type=int, default=1, help="how many trials to record, with a prompt before each"),
                arg("--trial", help="the trial's name (default: <tool>_<kind>_<NNN>, the next free number)"),
                arg("--no-prompt", action="store_true", help="start each trial at once (no Enter)")))
@@ -72,7 +103,8 @@ def cmd_record(args, p) -> int | None:
         check_plain_name(args.trial, "--trial")
     session.mkdir(parents=True, exist_ok=True)
     install_calibration(session, Path(args.calibration) if args.calibration else None)
-    devices = Devices(resolve_source(args.left), resolve_source(args.right), args.port, args.mode, args.baud)
+    devices = Devices(*two_cameras(resolve_source(args.left), resolve_source(args.right)), args.port, args.mode,
+                      args.baud)
     for k in range(args.trials):
         name = args.trial or next_trial_name(session, f"{args.tool}_{args.kind}")
         if not args.no_prompt:
@@ -102,19 +134,24 @@ def cmd_record(args, p) -> int | None:
                arg("--left", required=True, help=f"left finger's camera: {CAMERA_HELP}"),
                arg("--right", required=True, help=f"right finger's camera: {CAMERA_HELP}"),
                arg("--mode", choices=MODE_NAMES, default="qvga60", help="DIGIT stream mode"),
-               arg("--seconds", type=float, default=60.0, help="how long to run"),
+               arg("--seconds", type=seconds, default=60.0, help="how long to run"),
                arg("--log", default="live/estimates.csv", help="the log of (host_ns, frames, estimate, latency)"),
                arg("--reference", help="a reference.npz saved by an earlier run, instead of taking one at start"),
-               arg("--label-range", nargs=2, type=float, metavar=("MIN_N", "MAX_N"),
+               arg("--label-range", nargs=2, type=finite, metavar=("MIN_N", "MAX_N"),
                    help="a public-code normal-force checkpoint: the force range its outputs were scaled to")))
 def cmd_live(args, p) -> int | None:
+    from tactilepipe.core.errors import ArgumentError
     from tactilepipe.rig.cameras import resolve_source
     from tactilepipe.rig.live import run_live
     from tactilepipe.tool.model.stream import prepare_process
+    if args.label_range and not args.label_range[0] < args.label_range[1]:
+        raise ArgumentError(f"--label-range {args.label_range[0]:g} {args.label_range[1]:g}: give MIN_N then MAX_N, "
+                            f"MIN_N below MAX_N (the outputs' 0 and 1 map to them)")
+    sources = two_cameras(resolve_source(args.left), resolve_source(args.right))
     prepare_process(p)                               # before torch loads: the portable pins are read then
     print("keep the fingers out of contact: the first frame pair is the zero-force reference"
           if args.reference is None else f"reference pair from {args.reference}", file=sys.stderr)
-    summary = run_live(Path(args.checkpoint), (resolve_source(args.left), resolve_source(args.right)), args.mode, p,
+    summary = run_live(Path(args.checkpoint), sources, args.mode, p,
                        args.seconds, Path(args.log), Path(args.reference) if args.reference else None,
                        args.label_range)
     return 0 if summary.pairs and not summary.not_a_force else 1

@@ -125,6 +125,7 @@ def run_live(checkpoint: Path, sources: tuple[str, str], mode: str, p: dict, sec
                             break
                         continue
                     i, left, j, right, host_ns = got
+                    _check_sizes(first, left, right, (i, j), cameras, reference)
                     t0 = time.perf_counter()
                     value = est.estimate(left, right)
                     if not np.isfinite(value):     # never shown or logged as a force
@@ -154,13 +155,37 @@ def run_live(checkpoint: Path, sources: tuple[str, str], mode: str, p: dict, sec
     return summary
 
 
+def _check_sizes(first, left, right, numbers, cameras: list[Camera], reference: Path | None) -> None:
+    """InputError when a frame's size is not its reference frame's: a stream whose resolution
+    changed mid-way, or a saved reference of another mode (the model would compare a frame with a
+    reference of another view, and preprocessing would hide it)."""
+    for camera, ref, frame, number in zip(cameras, first, (left, right), numbers):
+        if frame.shape != ref.shape:
+            size, was = f"{frame.shape[1]}x{frame.shape[0]}", f"{ref.shape[1]}x{ref.shape[0]}"
+            where = f"its frames in {reference} are {was}" if reference else f"its reference frame was {was}: the " \
+                                                                           f"resolution changed mid-stream"
+            raise InputError(camera.source, f"{camera.name}: frame {number} is {size}, {where}")
+
+
+def _valid_reference(path: Path, left, right):
+    """The pair of a reference.npz, refused unless both are BGR uint8 frames of one size."""
+    for name, frame in (("digit_left", left), ("digit_right", right)):
+        if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
+            raise InputError(path, f"{name} is {frame.dtype} of shape {frame.shape}, not a BGR uint8 frame as "
+                                   f"`tactilepipe live` saves it")
+    if left.shape != right.shape:
+        raise InputError(path, f"digit_left is {left.shape[1]}x{left.shape[0]}, digit_right "
+                               f"{right.shape[1]}x{right.shape[0]}: one mode streams both")
+    return left, right
+
+
 def _reference(pairs: _PairSource, reference: Path | None, cameras: list[Camera], save_to: Path):
     """The zero-force reference pair: from ``reference`` (a reference.npz of an earlier run), or
     the first pair the cameras deliver (saved to ``save_to``)."""
     if reference is not None:
         try:
             with np.load(reference) as z:
-                return z["digit_left"], z["digit_right"]
+                return _valid_reference(reference, z["digit_left"], z["digit_right"])
         except (OSError, KeyError, ValueError) as exc:
             raise InputError(reference, f"not a reference.npz written by `tactilepipe live` ({exc})") from None
     got = pairs.take(timeout_s=5.0)

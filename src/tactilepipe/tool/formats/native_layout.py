@@ -4,7 +4,8 @@
       nano17.cal                  ATI calibration (XML; UserAxis rows: N per V for the 6 gauges)
       <trial>/
         meta.json                 tool, grasp pose, trial kind (see TrialMeta)
-        digit_left/frames.csv     frame,host_ns     (host clock, one row per frame)
+        digit_left/frames.csv     frame,host_ns     (host clock, one row per frame; the numbers skip the
+                                                    frames the camera dropped, which have no PNG)
         digit_left/frame_000000.png ...             BGR uint8, portrait 240 wide x 320 high (QVGA; VGA
                                                     and landscape frames are read too: DIGIT_SIZES)
         digit_right/...           same for the other finger
@@ -32,6 +33,7 @@ import numpy as np
 
 from tactilepipe.core.errors import InputError
 from tactilepipe.core.rawfile import META_MAX, TABLE_MAX, read_raw_bytes, read_raw_text
+from tactilepipe.tool.formats.calibration_structure import AXES, RATED_RANGE, check_structure
 
 SENSORS = ("digit_left", "digit_right")
 FRAME_W, FRAME_H = 240, 320          # portrait QVGA, as digit-interface returns it
@@ -41,16 +43,14 @@ FRAME_W, FRAME_H = 240, 320          # portrait QVGA, as digit-interface returns
 DIGIT_SIZES = ((320, 240), (240, 320), (640, 480), (480, 640))
 ADC_COUNTS, ADC_VOLTS = 1023, 5.0
 ADC_ZERO_V = 2.5
-AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 # ATI's unit names in a .cal file, as factors to N and N·mm (the units the pipeline works in)
 FORCE_UNITS = {"N": 1.0, "kN": 1000.0, "lbf": 4.4482216152605, "klbf": 4448.2216152605, "Klbf": 4448.2216152605,
                "g": 0.00980665, "kg": 9.80665, "kgf": 9.80665}
 TORQUE_UNITS = {"N-mm": 1.0, "N-m": 1000.0, "kN-m": 1e6, "lbf-in": 112.98482933, "lbf-ft": 1355.8179483,
                 "klbf-in": 112984.82933, "Klbf-in": 112984.82933, "kgf-cm": 98.0665, "g-cm": 0.0980665}
-# The Nano17 SI-25-0.25's rated ranges (ATI): Fx, Fy ±25 N, Fz ±35 N, torques ±250 N·mm. A matrix
-# must map the ADC's whole span (5 V) to forces between a quarter and a hundred times these:
+# The Nano17 SI-25-0.25's rated ranges (ATI; RATED_RANGE): Fx, Fy ±25 N, Fz ±35 N, torques ±250 N·mm.
+# A matrix must map the ADC's whole span (5 V) to forces between a quarter and a hundred times these:
 # beyond, a cell is out by orders of magnitude (a typo, another unit, another sensor's file).
-RATED_RANGE = np.array([25.0, 25.0, 35.0, 250.0, 250.0, 250.0])
 SPAN_FACTORS = (0.25, 100.0)
 MAX_CONDITION = 1e4                  # the simulated sessions' matrices: ~11
 FRAME_NAME = "frame_{:06d}.png"
@@ -142,7 +142,14 @@ def check_tool_name(tool: str, where, record: str | None = None) -> None:
 
 
 def read_frame_index(sensor_dir: str | Path) -> np.ndarray:
-    """host_ns of every frame (frame numbers must be 0..n-1 in order, stamps increasing)."""
+    """host_ns of every frame frames.csv lists (see read_frame_table)."""
+    return read_frame_table(sensor_dir)[1]
+
+
+def read_frame_table(sensor_dir: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """(frame numbers, host_ns) of every frame frames.csv lists. The numbers increase and may skip
+    (the camera dropped those frames: no row, no PNG); a number listed twice or going back, or
+    stamps that do not increase, are refused."""
     path = Path(sensor_dir) / "frames.csv"
     if not path.exists():
         raise InputError(path, "missing: every sensor folder needs frames.csv (frame,host_ns)")
@@ -158,20 +165,25 @@ def read_frame_index(sensor_dir: str | Path) -> np.ndarray:
         lines.pop()
     if not lines or lines[0].strip() != "frame,host_ns":
         raise InputError(path, "header must be 'frame,host_ns'", "line 1")
+    numbers = np.empty(len(lines) - 1, np.int64)
     stamps = np.empty(len(lines) - 1, np.int64)
     for i, line in enumerate(lines[1:]):
         parts = [p.strip() for p in line.split(",")]
         if len(parts) != 2 or not _UINT.match(parts[0]) or not _INT.match(parts[1]):
             raise InputError(path, f"expected 'frame,host_ns' integers, got {line!r}", f"line {i + 2}")
-        if int(parts[0]) != i:
-            raise InputError(path, f"frame number {parts[0]} out of sequence (expected {i})", f"line {i + 2}")
+        number = int(parts[0])
+        if number >= 10 ** 6:                    # FRAME_NAME's six digits: 9 hours at 30 fps
+            raise InputError(path, f"frame number {number} is beyond 999999 (frame_NNNNNN.png)", f"line {i + 2}")
+        if i and number <= numbers[i - 1]:
+            how = "listed twice" if number == numbers[i - 1] else f"out of order (after {numbers[i - 1]})"
+            raise InputError(path, f"frame number {number} {how}: frame numbers must increase", f"line {i + 2}")
         if not -2**63 < int(parts[1]) < 2**63:
             raise InputError(path, f"host_ns {parts[1]} does not fit in 64 bits", f"line {i + 2}")
-        stamps[i] = int(parts[1])
+        numbers[i], stamps[i] = number, int(parts[1])
     if len(stamps) and (np.diff(stamps) <= 0).any():
         k = int(np.argmax(np.diff(stamps) <= 0)) + 1
         raise InputError(path, "frame timestamps do not increase (clock jump or duplicate)", f"line {k + 2}")
-    return stamps
+    return numbers, stamps
 
 
 def write_calibration(path: str | Path, matrix: np.ndarray, serial: str = "FT-SIM-0001") -> None:
@@ -220,6 +232,7 @@ def read_calibration(path: str | Path) -> np.ndarray:
     _check_cells(path, matrix, factors)
     matrix = matrix * factors[:, None]
     _check_matrix(path, matrix)
+    check_structure(path, matrix)           # a cell off by 10x against the other rows, a transposed matrix
     return matrix
 
 

@@ -17,10 +17,17 @@ SENSORS = ("digit_left", "digit_right")
 
 @dataclass
 class SensorFrames:
-    """Frames of one DIGIT: host_ns per frame and a loader for frame i (BGR uint8, H x W x 3)."""
+    """Frames of one DIGIT: host_ns per frame and a loader for the i-th frame kept (BGR uint8,
+    H x W x 3). i counts the frames present, not the camera's numbers: where the camera dropped
+    frames (native frames.csv skipping numbers) frame i is the camera's ``numbers[i]``."""
     host_ns: np.ndarray
     load: Callable[[int], np.ndarray]
     source: list[str]                    # file (and record) of each frame, for error messages
+    numbers: np.ndarray | None = None    # the camera's frame number of each (None: 0..n-1)
+
+    def number(self, i: int) -> int:
+        """The camera's number of the i-th frame kept (what a message about it should say)."""
+        return int(self.numbers[i]) if self.numbers is not None else int(i)
 
     def __len__(self) -> int:
         return len(self.host_ns)

@@ -130,8 +130,10 @@ def open_public_trial(trial_dir: Path) -> RawTrial:
     session_dir = trial_dir.parent.parent
     check_public_session(session_dir, [trial_dir])
     meta = public_trial_meta(read_trials_csv(session_dir), trial_dir)
+    # frame i is the i-th kept, its file's NNNN is index[i] (labels dropped below 0 N, numbers skipped)
+    index = np.asarray(data["index"], np.int64)
     frames = {name: SensorFrames(host_ns, (lambda imgs: lambda i: imgs[i])(data[key]),
-                                 [f"{trial_dir}/{sub} frame {i}" for i in range(n)])
+                                 [f"{trial_dir}/{sub} frame {k}" for k in index], index)
               for name, key, sub in (("digit_left", "frames_left", "tactile1"), ("digit_right", "frames_right", "tactile2"))}
     return RawTrial(trial=f"{session_dir.name}/{trial_dir.parent.name}-{trial_dir.name}", kind=kind,
                     frames=frames, force_host_ns=host_ns, force_n=force, source=str(trial_dir),
