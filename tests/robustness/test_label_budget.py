@@ -81,6 +81,7 @@ FAULTS = {
     "exposure step on one camera": (lambda t, b: fault.exposure_step(t, "digit_left", 1.4), "witness 'exposure'"),
     "every second frame repeated": (lambda t, b: fault.repeated_frames(t), None),
     "cameras swapped": (lambda t, b: fault.swap_cameras(t), "witness 'cameras'"),
+    "one camera for both fingers": (lambda t, b: fault.one_camera_twice(t), "hold one camera's frames"),
     "zero drifting 1 N": (lambda t, b: fault.drift(t, _cal(b), 1.0), None),
 }
 # Faults the witnesses do not catch yet, each a measured overrun (docs/robustness.md lists them):

@@ -64,7 +64,10 @@ def make_native_session(root: Path) -> Path:
         (trial / s).mkdir(parents=True)
         rows = ["frame,host_ns"]
         for i in range(N_FRAMES):
-            cv2.imwrite(str(trial / s / f"frame_{i:06d}.png"), finger_frame(s, digit_frame(i)))
+            # a camera's noise never repeats a frame byte for byte (ingest drops a repeat as a stale buffer)
+            frame = finger_frame(s, digit_frame(i))
+            grain = np.random.default_rng([i, s == "digit_right"]).integers(0, 2, frame.shape, dtype=np.uint8)
+            cv2.imwrite(str(trial / s / f"frame_{i:06d}.png"), np.minimum(frame, 254) + grain)
             rows.append(f"{i},{START_NS + i * 33_333_333 + (3_000_000 if s == 'digit_right' else 0)}")
         (trial / s / "frames.csv").write_text("\n".join(rows) + "\n")
     write_serial(trial / "force.log", serial_lines())

@@ -41,7 +41,11 @@ def make_trial(session: Path, name: str, offset_s: float, kind: str = "normal", 
         lines = ["frame,host_ns"]
         for i, ti in enumerate(t):
             blob = gain * 4 * force_curve(ti) * np.exp(-((xx - 120) ** 2 + (yy - 160) ** 2) / 900.0)
-            img = np.clip(base + blob[..., None], 0, 255).astype(np.uint8)
+            img = np.clip(base + blob[..., None], 0, 254).astype(np.uint8)
+            # a camera's noise: no two exposures are the same bytes (ingest drops a repeat as a stale buffer)
+            img += np.random.default_rng([i, len(s), len(name)]).integers(0, 2, img.shape, dtype=np.uint8)
+            if s == "digit_right":                          # its own DIGIT: not the other finger's view
+                img = np.ascontiguousarray(img[:, ::-1])
             cv2.imwrite(str(d / f"frame_{i:06d}.png"), img)
             lines.append(f"{i},{START_NS + int(ti * 1e9) + (3_000_000 if s == 'digit_right' else 0)}")
         (d / "frames.csv").write_text("\n".join(lines) + "\n")

@@ -24,6 +24,7 @@ from tactilepipe.core.errors import InputError
 from tactilepipe.tool.formats.native_layout import RATED_RANGE
 from tactilepipe.tool.formats.raw import RawTrial
 from tactilepipe.tool.data.clock_sync import change_signal, fit_offset, frozen_frames, frozen_runs, judge
+from tactilepipe.tool.data.devices import one_camera_twice
 from tactilepipe.tool.data.witness import chain_witness, label_witness
 
 
@@ -155,7 +156,8 @@ def _check_frozen(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.nd
             seen = np.concatenate([inside, ends])
             change = float(seen.max() - seen.min())
             if change > limit_n or (a == 0 and b == len(frames) - 1):
-                raise InputError(frames.source[a], f"{name}: frames {a}-{b} of {len(frames)} are bit-identical while "
+                raise InputError(frames.source[a], f"{name}: frames {frames.number(a)}-{frames.number(b)} of {len(frames)} "
+                                                   f"are bit-identical while "
                                                    f"|F| changes by {change:.2f} N: the camera froze")
 
 
@@ -255,6 +257,9 @@ def ingest_trial(raw: RawTrial, shard: str | Path, image_size: int, ingest: dict
         clock["images"] = _image_lag(raw, grays, force_ns, force, ingest)
     _check_frozen(raw, grays, force_ns, force, ingest["clock"]["min_force_range_n"])
     if witness is not None:
+        same_view = one_camera_twice(raw.frames, grays)
+        if same_view:
+            witness["failed"]["one camera"] = same_view
         trusted = (bool(clock.get("refine")) or clock.get("method") == "serial_arrival") \
             and not clock.get("fallback") and not clock.get("dropped")
         label_witness(witness, raw.evidence, raw.frames, grays, force_ns, force, trusted, ingest["witness"])
