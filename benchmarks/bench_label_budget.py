@@ -57,10 +57,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--victims", type=int, default=3)
+    ap.add_argument("--families", nargs="*", help="only these fault families (default: all)")
+    ap.add_argument("--no-variations", action="store_true", help="only the clean session, no varied ones")
     args = ap.parse_args()
     start = time.perf_counter()
     table: dict[tuple[str, float], Counter] = {}
-    alarms = Counter()
+    alarms, reasons = Counter(), Counter()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         for seed in range(args.seeds):
@@ -71,13 +73,16 @@ def main() -> None:
             for name, result in [("clean", clean)] + [
                     (v, harness.run_case(harness.session(tmp / f"s{seed}-{i}" / "lab", harness.parameters(o, seed=seed)),
                                          tmp / f"s{seed}-{i}-case", o))
-                    for i, (v, o) in enumerate(harness.VARIATIONS.items())]:
+                    for i, (v, o) in enumerate(harness.VARIATIONS.items()) if not args.no_variations]:
                 alarms[(name, "trials")] += len(result)
                 alarms[(name, "left out")] += sum(r["status"] != "kept" for r in result.values())
                 alarms[(name, "overrun")] += sum(bool(r.get("over")) for r in result.values())
+                reasons.update(f"{name}: {r['reason'][:90]}" for r in result.values() if r["status"] != "kept")
             names = list(base.trials)
             victims = names[1::max(1, len(names) // args.victims)][:args.victims]
             for family, (sizes, inject) in families(base).items():
+                if args.families and family not in args.families:
+                    continue
                 for size in sizes:
                     for k, victim in enumerate(victims):
                         if inject is None:              # another trial's samples: the next trial's
@@ -94,12 +99,18 @@ def main() -> None:
                                                                                   for r in others.values())
                         alarms[("others of a faulty session", "overrun")] += sum(bool(r.get("over"))
                                                                                  for r in others.values())
+                        reasons.update(f"others ({family} {size}): {r['reason'][:90]}" for r in others.values()
+                                       if r["status"] != "kept")
     print(f"{'fault':34s} {'size':>6s}  caught  within  overrun   (of {args.seeds * args.victims} trials)")
     for (family, size), c in table.items():
         print(f"{family:34s} {size:>6g}  {c['caught']:6d}  {c['within']:6d}  {c['overrun']:7d}")
     print(f"\n{'session':28s} trials  left out  overrun")
     for name in dict.fromkeys(k[0] for k in alarms):
         print(f"{name:28s} {alarms[(name, 'trials')]:6d}  {alarms[(name, 'left out')]:8d}  {alarms[(name, 'overrun')]:7d}")
+    if reasons:
+        print("\nwhy the clean trials left out were left out:")
+        for why, n in reasons.most_common():
+            print(f"  {n:3d}  {why}")
     print(f"\nrun time {time.perf_counter() - start:.0f} s")
 
 

@@ -80,9 +80,8 @@ FAULTS = {
     "open gauge wire": (lambda t, b: fault.open_gauge(t, 2), "witness 'gauge wire'"),
     "exposure step on one camera": (lambda t, b: fault.exposure_step(t, "digit_left", 1.4), "witness 'exposure'"),
     "every second frame repeated": (lambda t, b: fault.repeated_frames(t), None),
-    "cameras swapped": (lambda t, b: fault.swap_cameras(t), "witness 'cameras'"),
+    "cameras swapped": (lambda t, b: fault.swap_cameras(t), None),      # no label changes: docs/robustness.md
     "one camera for both fingers": (lambda t, b: fault.one_camera_twice(t), "hold one camera's frames"),
-    "zero drifting 1 N": (lambda t, b: fault.drift(t, _cal(b), 1.0), None),
 }
 # Faults the witnesses do not catch yet, each a measured overrun (docs/robustness.md lists them):
 # the test fails the day one is caught, so the list stays true.

@@ -23,8 +23,6 @@ class ClockSync(Group):
     max_finger_disagreement_s: PositiveFloat
     on_low_score: Literal["refuse", "host_clock", "drop"]
     min_force_range_n: PositiveFloat
-    max_camera_latency_s: PositiveFloat = Field(description="arrival-stamped trials: window (s, either way) in "
-                                                            "which the images' lag behind the force is sought")
 
 
 class IngestWitness(Group):

@@ -36,8 +36,7 @@ from tactilepipe.tool.data.ingest import read_shard_info
 from tactilepipe.tool.formats.native_layout import frame_orientation
 from tactilepipe.tool.formats.raw import SENSORS
 from tactilepipe.tool.data.sync import interpolate_at, pair_frames
-from tactilepipe.tool.data.session_cameras import swapped_cameras
-from tactilepipe.tool.data.session_clock import camera_latency, lag_outlier, session_of, shift_ns
+from tactilepipe.tool.data.session_clock import camera_latency, lag_outlier, shift_ns
 from tactilepipe.tool.data.witness import session_outliers
 
 LOADED_START_N = 1.0             # N: a normal force this far below zero (5th percentile) means a loaded zero
@@ -161,11 +160,6 @@ def build_tool_dataset(shards: list[Path], kind: str, out_dir: Path, sync: dict)
         if why:
             trials.remove(trial)
             dropped.append({"trial": trial["info"]["trial"], "source": trial["info"]["source"], "reason": why})
-    firsts = [tuple(_decode(t["png"][s][0], t["info"]["source"]) for s in range(2)) for t in trials]
-    swapped = swapped_cameras(firsts, [session_of(t["info"]) for t in trials])
-    for i, why in sorted(swapped.items(), reverse=True):
-        dropped.append({"trial": trials[i]["info"]["trial"], "source": trials[i]["info"]["source"], "reason": why})
-        del trials[i]
     for trial in list(trials):
         wrong = bad_zero(trial["force"], sync["normal_sign"])
         if wrong:

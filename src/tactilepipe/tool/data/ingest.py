@@ -135,8 +135,8 @@ def _image_lag(raw: RawTrial, grays: dict, force_ns: np.ndarray, force: np.ndarr
     """A force clock from arrival stamps is not moved: the images' own best lag is kept as evidence
     (the camera's exposure-to-stamp latency, pooled over the session at the dataset stage, and the
     witness of this trial's clock), with why it cannot be used where it cannot."""
-    clock = ingest["clock"]
-    fit, why = _image_fit(raw, grays, force_ns, force, clock["max_camera_latency_s"], clock)
+    # the whole window: a clock off by more than a camera's latency must still show where it lies
+    fit, why = _image_fit(raw, grays, force_ns, force, ingest["max_offset_s"], ingest["clock"])
     return {**fit.record(), "usable": why is None, **({"unusable": why} if why else {})}
 
 

@@ -8,9 +8,9 @@ the lag at which |F| best explains the tactile images. One trial's image fit sca
 ms (a slow press, a slide whose images follow the shear more than |F|); the median over the
 session's trials does not. So:
 
-- the session's latency is the median of the usable per-trial lags of its pressing trials
-  (ingest's ``clock.images``), and every label of the session is taken that much before its frame
-  pair's stamp;
+- the session's latency is the median of the usable per-trial lags of its pressing trials whose
+  images change enough to judge (ingest's ``clock.images``, the witness's ``images_judge``), and
+  every label of the session is taken that much before its frame pair's stamp;
 - a pressing trial whose own usable lag lies more than ``max_lag_error_s`` from the session's is left out,
   named: its force log or its frames are not of one moment (stamps shifted, another trial's
   samples, frames repeated or skipped);
@@ -27,6 +27,13 @@ ARRIVAL = "serial_arrival"
 PRESSING = "normal"
 
 
+def _usable(info: dict) -> bool:
+    """The trial's image lag counts: the fit was trusted, and its images change enough to judge."""
+    judge = info.get("witness", {}).get("metrics", {}).get("images_judge", True)
+    return bool(info.get("clock", {}).get("images", {}).get("usable")) and judge and info["kind"] == PRESSING
+
+
+
 def session_of(info: dict) -> str:
     return info["trial"].split("/")[0]
 
@@ -41,7 +48,7 @@ def camera_latency(infos: list[dict]) -> dict[str, dict]:
             continue
         images = clock.get("images", {})
         lags.setdefault(session_of(info), [])
-        if images.get("usable") and info["kind"] == PRESSING:
+        if _usable(info):
             lags[session_of(info)].append(float(images["refined_shift_s"]))
     out = {}
     for session, values in lags.items():
@@ -67,8 +74,7 @@ def lag_outlier(info: dict, latencies: dict[str, dict], max_error_s: float) -> s
     clock = info.get("clock", {})
     images = clock.get("images", {})
     session = latencies.get(session_of(info), {})
-    if clock.get("method") != ARRIVAL or not images.get("usable") or session.get("latency_s") is None \
-            or info["kind"] != PRESSING:
+    if clock.get("method") != ARRIVAL or not _usable(info) or session.get("latency_s") is None:
         return None
     error = float(images["refined_shift_s"]) - session["latency_s"]
     if abs(error) <= max_error_s:

@@ -211,6 +211,7 @@ def label_witness(witness: dict, evidence: dict, frames: dict, grays: dict, forc
     # size): they cannot judge its labels, which then rest on the clock alone
     snr = max(image_snr(grays[name]) for name in frames)
     metrics["image_snr"] = round(snr, 2)
+    metrics["images_judge"] = bool(snr >= tol["min_image_snr"])    # their gain and lag are compared only then
     if clock_trusted and snr >= tol["min_image_snr"] and np.isfinite(r) and r < tol["min_image_score"]:
         failed["images"] = (
             f"the tactile change follows |F| with correlation {r:.2f} at the labels' clock (at least "
@@ -234,7 +235,7 @@ def _values(info: dict) -> dict:
     # a session may mix camera rates, each declared in its meta.json: the rate compared is the stamps'
     # against the trial's own declaration (a camera whose clock runs off stands out among them)
     declared = m.get("declared_fps") or 1.0
-    trusted = m.get("clock_trusted")
+    trusted = m.get("clock_trusted") and m.get("images_judge", True)
     return {"gain": float(np.log(gain)) if trusted and gain and gain > 0 else None,
             "offset": m.get("rest_fz_n"),
             "lag": lag, "rate": float(np.log(np.mean(fps) / declared)) if fps else None}
