@@ -2,8 +2,9 @@
 
 One trial: the serial port is opened first (its open time is force.log's ``# start_host_ns``),
 then both cameras; every frame is written as a PNG with its host time in frames.csv, every serial
-line into force.log as received and its arrival time into force_arrival.csv; after ``seconds`` the devices are closed and meta.json is
-written. The layout is in tool/formats/native_layout.py and docs/rig.md.
+line into force.log as received and its arrival time into force_arrival.csv; after ``seconds``
+the devices are closed and meta.json is written. The layout is in tool/formats/native_layout.py
+and docs/rig.md.
 
 The trial is written in a staging folder beside the sessions (``<root>/.recording/<session>/``)
 and renamed into the session only when complete, so the session never holds half a trial. A trial

@@ -8,9 +8,10 @@ Each of these only ever adds delay, and most lines meet little of it; now and th
 tens of ms. So the Arduino's clock is the *lower envelope* of the points (arduino_ms, arrival):
 a line through the least-delayed line of each stretch of the log. A late line, however late,
 cannot move it; only the least-delayed lines do (the fit is as good as the fastest of a few
-lines, about 0.2 ms with the USB adaptor's 1-ms polling). The envelope carries a constant delay (reading, sending, the fastest USB transfer), which the
-camera's own exposure-to-stamp latency adds to; both are taken out together, from the images
-of the whole session (tool/data/session_clock.py).
+lines, about 0.2 ms with the USB adaptor's 1-ms polling). The envelope carries a constant delay
+(reading, sending, the fastest USB transfer), to which the camera's own exposure-to-stamp
+latency adds; both are taken out together, from the images of the whole session
+(tool/data/session_clock.py).
 
 Checks that need no images: the arrival stamps must cover the samples kept, increase, and the
 Arduino's crystal must run within ``MAX_RATE_PPM`` of the host's clock (a log put beside another
