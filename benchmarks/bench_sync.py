@@ -1,4 +1,5 @@
-"""Clock sync under single-frame glitches: simulated default-scale native trials, each ingested
+"""Clock sync under single-frame glitches: simulated default-scale native trials (without their
+arrival stamps, so the clock is the image refinement's), each ingested
 clean and again with one injected glitch (one frame of one finger dimmed to 80 %, or near-black,
 or dropped; kind, finger and frame drawn at random). Prints the share of trials whose offset
 stays within one frame period of the clean offset (target >= 95 %), the share refused (an
@@ -20,6 +21,7 @@ import numpy as np
 from tactilepipe.core.config import load_params
 from tactilepipe.core.errors import InputError
 from tactilepipe.tool import sim as tsim
+from tactilepipe.tool.formats.arrival_log import ARRIVAL_NAME
 from tactilepipe.tool.formats.trials import open_trial
 from tactilepipe.tool.data.ingest import ingest_trial
 from tactilepipe.tool.formats.raw import SensorFrames
@@ -76,6 +78,8 @@ def main() -> None:
         tsim.write_session_calibration(session, p)
         for spec in plan:
             tsim.write_trial(session, spec, p)
+            # the image refinement is the clock of logs without arrival stamps: measured on such logs
+            (session / spec.name / ARRIVAL_NAME).unlink()
             raw = open_trial(session / spec.name, "native")
             clean = shift(raw, Path(tmp) / "clean.parquet", p)
             kind, finger = KINDS[rng.integers(len(KINDS))], ("digit_left", "digit_right")[rng.integers(2)]

@@ -106,8 +106,6 @@ def test_two_recorded_trials_ingest_with_every_drop_explained_and_the_clock_reco
         millis0_ns = camera_origin_ns + truth["tau_at_millis0"] * 1e9
         fitted_ns = start_host_ns + info["clock"]["millis0_after_port_open_s"] * 1e9
         assert abs(fitted_ns - millis0_ns) < 0.01e9, (fitted_ns - millis0_ns) / 1e9
-        true_shift_s = (millis0_ns - start_host_ns) / 1e9
-        assert abs(true_shift_s) < 1 / FPS, true_shift_s
 
 
 def test_a_trial_that_loses_the_arduino_or_a_camera_is_set_aside(rig, tmp_path):

@@ -45,10 +45,18 @@ def build(wd: Path) -> None:
     snakemake(wd, "--workflow-profile", "workflow/profiles/default")
 
 
+RUN_TIMEOUT_S = 1800                 # the longest command a test runs (a smoke build) takes under 10 min
+
+
 def run(cmd: list[str], cwd: Path, check: bool = True) -> subprocess.CompletedProcess:
     # a project copy runs its own source (the installed package points at the repository's)
     env = {**ENV, "PYTHONPATH": str(Path(cwd) / "src")} if (Path(cwd) / "src" / "tactilepipe").is_dir() else ENV
-    proc = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
+    # a bound on every command: a tool that hangs (a DVC command once sat 26 min in a futex wait
+    # under load) fails its test instead of holding the whole suite
+    try:
+        proc = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=RUN_TIMEOUT_S)
+    except subprocess.TimeoutExpired as exc:
+        raise AssertionError(f"{' '.join(cmd)} did not end within {RUN_TIMEOUT_S} s") from exc
     if check and proc.returncode != 0:
         raise AssertionError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
     return proc
