@@ -29,7 +29,7 @@ OTHER = "screwdriver_1_p00_normal01"
 def clean(tmp_path_factory):
     root = tmp_path_factory.mktemp("budget")
     base = harness.session(root / "clean" / "lab", harness.parameters())
-    result = harness.run_case(base, root / "case", {})
+    result = harness.run_case(base, root / "case", {}, via_cli=True)
     return {"base": base, "result": result, "root": root,
             "shards": {n: root / "case" / "shards" / f"{n}.parquet" for n in base.trials}}
 
@@ -54,7 +54,7 @@ def test_a_clean_session_keeps_every_trial_within_the_budget(clean):
 def test_a_legitimate_variation_keeps_every_trial_within_the_budget(tmp_path, variation):
     overrides = harness.VARIATIONS[variation]
     base = harness.session(tmp_path / "raw" / "lab", harness.parameters(overrides))
-    result = harness.run_case(base, tmp_path / "case", overrides, via_cli=False)
+    result = harness.run_case(base, tmp_path / "case", overrides, via_cli=True)
     assert len(result) == 9
     _all_kept_within_budget(result)
 
@@ -62,7 +62,7 @@ def test_a_legitimate_variation_keeps_every_trial_within_the_budget(tmp_path, va
 def test_a_session_mixing_30_and_60_fps_trials_keeps_every_trial(tmp_path):
     base = harness.session(tmp_path / "raw" / "lab", harness.parameters(),
                            rate_of=lambda spec: 60.0 if spec.trial_index == 1 else 30.0)
-    result = harness.run_case(base, tmp_path / "case", {})
+    result = harness.run_case(base, tmp_path / "case", {}, via_cli=True)
     _all_kept_within_budget(result)
 
 

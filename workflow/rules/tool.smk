@@ -62,7 +62,9 @@ rule tool_clock_figure:
 
 rule tool_dataset:
     input:
-        shards=lambda w: shards("tool", kind=scene_label(w.scene)),
+        # every trial, either kind: the pressing trials give the session's camera latency, which
+        # times the sliding trials' labels too (tool/data/session_clock.py)
+        shards=lambda w: shards("tool"),
         code=stage_code("tool-dataset"),
         params=param_stamp("tool-dataset"),
     output:
