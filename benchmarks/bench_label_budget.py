@@ -8,7 +8,7 @@ failure nobody named); then the clean and varied sessions' trials left out (fals
 overruns; and the run time. The seeded subset of this draw runs in the test suite
 (tests/robustness/test_label_budget.py); docs/robustness.md quotes this script's table.
 
-Usage: python benchmarks/bench_label_budget.py [--seeds 2] [--victims 3]
+Usage: python benchmarks/bench_label_budget.py [--seeds 2] [--victims 3] [--families ...] [--small]
 """
 
 from __future__ import annotations
@@ -59,7 +59,10 @@ def main() -> None:
     ap.add_argument("--victims", type=int, default=3)
     ap.add_argument("--families", nargs="*", help="only these fault families (default: all)")
     ap.add_argument("--no-variations", action="store_true", help="only the clean session, no varied ones")
+    ap.add_argument("--small", action="store_true", help="one seed, one victim, one family: a check that it runs")
     args = ap.parse_args()
+    if args.small:
+        args.seeds, args.victims, args.families, args.no_variations = 1, 1, ["zero offset N"], True
     start = time.perf_counter()
     table: dict[tuple[str, float], Counter] = {}
     alarms, reasons = Counter(), Counter()

@@ -22,6 +22,7 @@ ROWS = {
                       r"training step \(fwd, bwd, Adam\) +[0-9.]+ +[0-9.]+ +[0-9.]+ +[0-9.]+ +[0-9.]+"],
     "bench_integrators.py": [r"\| exponential \| 500 \| 1 \|", r"\| euler \| 500 \| 2 \|"],
     "bench_kernels.py": [r"smoke +8 +[0-9]+ +[0-9]+ +[0-9.]+", r"portable kernels in force: .*'mode': 'portable'"],
+    "bench_label_budget.py": [r"zero offset N +-?[0-9.]+ +[0-9]+ +[0-9]+ +[0-9]+", r"clean +9 +0 +0"],
     "bench_live.py": [r"quiet +[0-9.]+ +[0-9.]+ +[0-9.]+ +[0-9]+ +[0-9.]+"],
     "bench_predict_load.py": [r"params.yaml predict .* +[0-9.]+ +[0-9.]+"],
     "bench_scheduler.py": [r"Snakemake's default: --max-jobs-per-timespan 100/1s +[0-9.]+ +[0-9.]+ +[0-9.]+% +[0-9.]+",
