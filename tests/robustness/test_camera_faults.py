@@ -5,16 +5,15 @@ trial kept; one camera's frames given for both fingers are refused, naming the c
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
-import sys
 
 import numpy as np
 import pytest
 
 from support import witness_faults as fault
-from support.project import ENV, REPO
+from support.label_harness import cli
+from support.project import REPO
 from support.tool_sim import write_session
 from tactilepipe.core.config import load_params
 from tactilepipe.tool.data.devices import one_camera_twice
@@ -30,12 +29,6 @@ OVERRIDE = {"tool_ingest": {"stored_size": 32},
 P = load_params(REPO / "params.yaml", {"scale": "default", **OVERRIDE})
 CLI_PARAMS = ["--params", str(REPO / "params.yaml"), "--scale", "default", "--override", json.dumps(OVERRIDE)]
 SIZE = P["tool_ingest"]["stored_size"]
-
-
-def cli(*args: str) -> subprocess.CompletedProcess:
-    env = {**ENV, "PYTHONPATH": str(REPO / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    return subprocess.run([sys.executable, "-m", "tactilepipe", *args], env=env, capture_output=True, text=True,
-                          timeout=300)
 
 
 @pytest.fixture(scope="module")
