@@ -51,7 +51,6 @@ def write_lifts_bag(path, recs: list[dict], start_ns: int, write_ros1_bag, keep_
     one bag (each starts one sample after the previous one ends), of which only the samples from
     ``keep_s[0]`` to ``keep_s[1]`` s are written (a recording started late or stopped early).
     Returns the joined recording (t, force, pose_t, pose_z) as written."""
-    from tactilepipe.papillarray import messages as pa
     parts, pose_parts, t0 = [], [], 0.0
     for rec in recs:
         parts.append({k: rec[k] for k in ("force", "disp", "in_contact", "slip")} | {"t": rec["t"] + t0})
@@ -62,17 +61,5 @@ def write_lifts_bag(path, recs: list[dict], start_ns: int, write_ros1_bag, keep_
     lo, hi = keep_s[0], np.inf if keep_s[1] is None else keep_s[1]
     rows, pose_rows = (joined["t"] >= lo) & (joined["t"] < hi), (pose_t >= lo) & (pose_t < hi)
     joined = {k: v[rows] for k, v in joined.items()} | {"pose_t": pose_t[pose_rows], "pose_z": pose_z[pose_rows]}
-    stamps = start_ns + np.round(joined["t"] * 1e9).astype(np.int64)
-    topics = {}
-    for s in range(2):
-        raws = pa.encode_sensor_states(stamps, (stamps - start_ns) // 1000, joined["disp"][:, s],
-                                       joined["force"][:, s], joined["in_contact"][:, s],
-                                       joined["slip"][:, s].astype(np.int32), frame_id=f"hub_0/sensor_{s}")
-        topics[pa.sensor_topic(0, s)] = (pa.SENSOR_STATE, stamps.tolist(), raws)
-    pose_stamps = start_ns + np.round(joined["pose_t"] * 1e9).astype(np.int64)
-    pos = np.zeros((len(pose_stamps), 3))
-    pos[:, 0], pos[:, 2] = 0.45, joined["pose_z"]
-    topics["/tool_pose"] = (pa.POSE_STAMPED, pose_stamps.tolist(), pa.encode_pose_stamped(pose_stamps, pos))
-    Path(path).unlink(missing_ok=True)                 # the writer never overwrites
-    write_ros1_bag(path, topics)
+    write_lift_bag_offset(path, joined, start_ns, 0.0, write_ros1_bag)
     return joined
