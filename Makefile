@@ -58,8 +58,7 @@ bench: $(STAMP)  ## benchmarks, each printing ours next to the reference loop an
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python benchmarks/bench_scheduler.py
 
 pull: $(STAMP)  ## fetch shared results (dvc pull) and, once DVC finds them current by content, mark them so for Snakemake
-	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/dvc pull
-	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python workflow/scripts/mark_pulled.py
+	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python workflow/scripts/mark_pulled.py --pull
 
 dvc.yaml: $(STAMP)  ## regenerate dvc.yaml from the Snakemake graph, and studies/000/dvc.yaml (run after editing rules, stages or imports)
 	PATH=$(CURDIR)/$(BIN):$$PATH $(BIN)/python workflow/scripts/dvc_yaml.py

@@ -27,7 +27,7 @@ import pytest
 import yaml
 
 from support.dvc_graph import covers, dvc_stages
-from support.project import BIN, REPO, SMOKE, build, copy_project, dvc, git, results, run, snakemake
+from support.project import BIN, REPO, SMOKE, copy_project, dvc, git, results, run, snakemake
 from tactilepipe.tool.scenes import TOOL_SCENES
 
 pytestmark = pytest.mark.integration
@@ -69,8 +69,8 @@ def tracked_files(wd: Path) -> dict[str, bytes]:
 @pytest.fixture(scope="module")
 def repo(tmp_path_factory) -> dict:
     """A git + DVC project at the smoke scale, reproduced, committed and pushed to a local remote.
-    As a user would: the pipeline is built first with Snakemake (`make run`), then `dvc repro` runs
-    every stage, and DVC records and caches every output. The project is this module's own (not
+    As a user would: the pipeline is built with Snakemake (`make run`), which records what it built
+    for DVC (dvc.lock and the cache), then committed and pushed. The project is this module's own (not
     the shared smoke build): so `make test` can run it on one worker while the shared build and
     its readers run on the other."""
     root = tmp_path_factory.mktemp("dvcflow")
@@ -90,7 +90,6 @@ def repo(tmp_path_factory) -> dict:
     (wd / "params.yaml").write_text(params)
     run([str(BIN / "python"), "workflow/scripts/dvc_yaml.py"], wd)
     assert "loto.png" not in (wd / "dvc.yaml").read_text()
-    build(wd)
     git(wd, "init", "-q")
     git(wd, "config", "user.email", "test@example.com")
     git(wd, "config", "user.name", "test")
@@ -98,15 +97,13 @@ def repo(tmp_path_factory) -> dict:
     shutil.copy(REPO / ".dvc/config", wd / ".dvc/config")            # the project's cache and remote set-up
     remote = root / "remote"
     dvc(wd, "remote", "modify", "local", "url", str(remote))        # committed: a clone finds it
-    out = dvc_out(wd, "repro")
-    assert ran_stages(out) == set(STAGES), out[-3000:]
-    # what the build made is reused: DVC keeps a stage's persistent outputs (recordings, shards,
-    # trained models) and deletes the others before it runs the stage, so only those jobs re-run
-    rerun = set(job_counts(out))
-    assert not rerun & {"volume_simulate", "drift_simulate", "tool_simulate", "papillarray_ingest", "tool_ingest",
-                        "tool_train"}, rerun
-    # DVC re-copies outputs from its cache when it commits them (new mtimes in DVC's order); the
-    # profile's input checksums keep Snakemake from re-running anything
+    # the build with Snakemake (`make run`) records every stage it made for DVC, as `dvc commit`
+    # does: one state for both tools, so DVC plans nothing of what Snakemake built
+    proc = snakemake(wd, "--workflow-profile", "workflow/profiles/default")
+    assert f"DVC: recorded {len(STAGES)} stage(s)" in proc.stderr, proc.stderr[-3000:]
+    assert "up to date" in dvc(wd, "status").stdout.lower()
+    out = dvc_out(wd, "repro", "--dry")
+    assert ran_stages(out) == set() and "Data and pipelines are up to date" in out, out[-3000:]
     proc = snakemake(wd, "-n")
     assert "Nothing to be done" in proc.stdout + proc.stderr, proc.stdout[-3000:]
     git(wd, "add", ".")
@@ -157,8 +154,11 @@ def take_in_session(repo: dict, scene: str, session: str, simulate_flags: list[s
     params = (wd / "params.yaml").read_text()
     assert param_line in params
     (wd / "params.yaml").write_text(params.replace(param_line, new_param_line))
+    planned = snakemake(wd, "-n")
+    planned_stages = ran_stages(dvc_out(wd, "repro", "--dry"))
     out = dvc_out(wd, "repro")
-    taken = {"out": out, "diff": json.loads(dvc(wd, "metrics", "diff", "--json").stdout),
+    taken = {"out": out, "planned": job_counts(planned.stdout + planned.stderr), "planned_stages": planned_stages,
+             "diff": json.loads(dvc(wd, "metrics", "diff", "--json").stdout),
              "diff_md": dvc(wd, "metrics", "diff", "--md").stdout}
     # each scene's metrics travel with its provenance and run times, and the rules' parameter stamps
     records = [str(Path(m).with_name(n)) for m in metrics for n in ("metrics.json", "provenance.json", "runtime.json")
@@ -184,7 +184,9 @@ def new_session(repo) -> dict:
 
 def test_new_session_reruns_only_the_volume_stage_and_ingests_only_new_bags(repo, new_session):
     wd, out = repo["wd"], new_session["out"]
-    assert ran_stages(out) == {"volume"}, out[-3000:]
+    assert ran_stages(out) == {"volume"} == new_session["planned_stages"], out[-3000:]
+    # both tools plan the same work: the jobs `snakemake -n` planned are the jobs `dvc repro` ran
+    assert job_counts(out) == new_session["planned"], (job_counts(out), new_session["planned"])
     for stage in set(STAGES) - {"volume"}:
         assert f"Stage '{stage}' didn't change, skipping" in out, stage
     counts = job_counts(out)
@@ -223,7 +225,8 @@ def new_tool_session(repo, new_session) -> dict:
 @pytest.mark.extended
 def test_new_tool_session_reruns_only_the_tool_stages_and_ingests_only_new_trials(repo, new_tool_session):
     wd, out = repo["wd"], new_tool_session["out"]
-    assert ran_stages(out) == {"tool_data", "tool_models"}, out[-3000:]
+    assert ran_stages(out) == {"tool_data", "tool_models"} == new_tool_session["planned_stages"], out[-3000:]
+    assert job_counts(out) == new_tool_session["planned"], (job_counts(out), new_tool_session["planned"])
     for stage in set(STAGES) - {"tool_data", "tool_models"}:
         assert f"Stage '{stage}' didn't change, skipping" in out, stage
     counts = job_counts(out)
@@ -255,7 +258,8 @@ def new_drift_session(repo, new_session) -> dict:
 
 def test_new_drift_session_reruns_only_the_drift_stage(repo, new_drift_session):
     wd, out = repo["wd"], new_drift_session["out"]
-    assert ran_stages(out) == {"drift"}, out[-3000:]
+    assert ran_stages(out) == {"drift"} == new_drift_session["planned_stages"], out[-3000:]
+    assert job_counts(out) == new_drift_session["planned"], (job_counts(out), new_drift_session["planned"])
     counts = job_counts(out)
     assert new_drift_session["n_new"] >= 7
     assert counts["papillarray_ingest"] == new_drift_session["n_new"], counts
@@ -335,22 +339,53 @@ def test_push_clone_pull_is_byte_identical_and_snakemake_has_nothing_to_do(repo,
     run(["git", "clone", "-q", str(wd), str(clone)], repo["root"])
     assert not (clone / "raw/volume/sim-smoke").exists() and not (results(clone) / "volume/dataset.parquet").exists()
     assert (results(clone) / "volume/metrics.json").exists()             # metrics come with git
-    dvc(clone, "pull")
+    # `make pull`: dvc pull, then, as DVC keeps no modification times and a clone has no Snakemake
+    # records, the pulled results are marked up to date for Snakemake once DVC has found every
+    # stage current by content
+    mark = run([str(BIN / "python"), "workflow/scripts/mark_pulled.py", "--pull"], clone)
+    assert "every stage up to date" in mark.stdout, mark.stdout + mark.stderr
     ours, theirs = tracked_files(wd), tracked_files(clone)
     assert sorted(theirs) == sorted(ours)
     assert [f for f in ours if ours[f] != theirs[f]] == []
     kinds = {Path(f).suffix for f in theirs}
     assert {".bag", ".csv", ".parquet", ".pt", ".json", ".png", ".md", ".npy"} <= kinds, kinds
-    assert "up to date" in dvc(clone, "status").stdout.lower()
-    # DVC keeps no modification times and a clone has no Snakemake records: `make pull` marks the
-    # pulled results up to date for Snakemake only after DVC has found every stage current by content
-    mark = run([str(BIN / "python"), "workflow/scripts/mark_pulled.py"], clone)
-    assert "every stage up to date" in mark.stdout, mark.stdout + mark.stderr
     proc = snakemake(clone, "-n")
     assert "Nothing to be done" in proc.stdout + proc.stderr, proc.stdout[-3000:]
     assert "up to date" in dvc(clone, "status").stdout.lower()
     out = dvc_out(clone, "repro")
     assert ran_stages(out) == set(), out[-2000:]
+
+
+def test_make_pull_with_nothing_to_pull_from_says_what_to_set_up_in_one_line(repo):
+    """A fresh clone whose remote is missing, empty, holds other objects or is not set, or that has
+    no dvc.lock: `make pull` stops with one line naming the remote and what to do (DVC's own output,
+    thousands of lines for a missing remote, is kept in a log)."""
+    wd, clone = repo["wd"], repo["root"] / "clone_no_remote"
+    run(["git", "clone", "-q", str(wd), str(clone)], repo["root"])
+    pull = [str(BIN / "python"), "workflow/scripts/mark_pulled.py", "--pull"]
+
+    def one_line(*expected: str) -> str:
+        proc = run(pull, clone, check=False)
+        lines = proc.stderr.strip().splitlines()
+        assert proc.returncode == 1 and len(lines) == 1, proc.stdout + proc.stderr
+        assert all(e in lines[0] for e in expected), lines[0]
+        return lines[0]
+
+    elsewhere = repo["root"] / "no_such_remote"
+    dvc(clone, "remote", "modify", "--local", "local", "url", str(elsewhere))
+    one_line("'local'", str(elsewhere), "does not exist", "dvc push")
+    elsewhere.mkdir()
+    one_line("is empty")
+    (elsewhere / "files/md5/00").mkdir(parents=True)
+    (elsewhere / "files/md5/00/stray").write_text("not an object of this project")
+    one_line("lacks", "of the objects dvc.lock names", ".dvc/tmp/pull.log")
+    assert (clone / ".dvc/tmp/pull.log").read_text().strip()
+    config = clone / ".dvc/config"
+    config.write_text(config.read_text().replace("remote = local", ""))
+    one_line("no default DVC remote", "dvc remote add -d")
+    (clone / "dvc.lock").unlink()
+    one_line("no dvc.lock", "make run")
+    assert not (clone / "raw/volume/sim-smoke").exists()
 
 
 def test_plots_show_offline_and_diff_between_commits(repo, new_session):

@@ -6,7 +6,7 @@ import sys
 from functools import cache
 from pathlib import Path
 
-from tactilepipe.pipeline import codedeps, layout, scenes, stage_rules, studies
+from tactilepipe.pipeline import codedeps, dvc_state, layout, scenes, stage_rules, studies
 from tactilepipe.pipeline.sessions import SessionSheet
 from tactilepipe.pipeline.stamp_keeper import StampKeeper
 from tactilepipe.core.config import changed_leaves, resolve, typed_like
@@ -54,6 +54,7 @@ STAMPS = StampKeeper(P, SHEET, lambda: workflow.dryrun, _tell_snakemake_it_exist
 
 onsuccess:
     STAMPS.record_made_files()
+    record_for_dvc()                  # workflow/rules/dvc.smk
 
 
 @cache
