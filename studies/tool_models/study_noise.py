@@ -1,0 +1,158 @@
+"""Where the noise of the study's orderings comes from: split composition, model seed or test sampling.
+
+Each ordering of the tool report (full < no_gam, ..., full against the tactile-RMSE linear fit) is a
+paired MAE difference over the repeated trial splits. This retrains each variant on the first
+``--splits`` splits of a built scene with ``--seeds`` model seeds each (seed 0 is the build's own run,
+reused; seed m adds 1000 m to params.yaml ``seed``), and splits the variance of every paired
+difference into split composition, model seed and test sampling (tool/report/noise.py). It prints
+one table per scene: each component's standard deviation, the interval half-width of today's design
+(K repeats, one seed) and of designs with more repeats or seeds, and what a run costs.
+
+Needs a built scene (`make run`). Runs go to --work-dir and are reused when the script runs again.
+    python studies/tool_models/study_noise.py [--scenes tool_normal tool_shear] [--splits 3] [--seeds 3] [--jobs 2]
+About 100 s per training run on one core at the default scale (width 32, 8 epochs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from tactilepipe.core.atomic import write_json
+from tactilepipe.tool.data.loader import ToolFrames
+from tactilepipe.tool.model.evaluate import linear_fit_predictions, tactile_rmse_features
+from tactilepipe.tool.report.noise import bootstrap_difference_variance, decompose, half_width
+from tactilepipe.tool.scenes import scene_label
+
+REPO = Path(__file__).resolve().parents[2]
+BASELINE = "tactile_rmse_linear"
+ORDERINGS = {   # (better, worse) as the report claims them (tool/report/verdicts.py)
+    "tool_normal": [("full", "no_gam"), ("full", "no_ref"), ("full", "single"), ("no_gam", "no_ref"),
+                    ("no_ref", "single"), ("full", BASELINE)],
+    "tool_shear": [("full", "no_gam"), ("full", "no_ref"), ("full", "single"), ("full", BASELINE)],
+}
+DESIGNS = [(8, 1), (8, 2), (16, 1), (8, 4), (32, 1)]   # (repeats K, seeds per split M)
+
+
+def run_name(variant: str, k: int) -> str:
+    return variant if k == 0 else f"{variant}_r{k}"
+
+
+def split_name(k: int) -> str:
+    return "trial" if k == 0 else f"trial_r{k}"
+
+
+def train(args, scene: str, variant: str, k: int, m: int) -> Path:
+    """The run's folder: the build's own for seed 0, else trained (once) under --work-dir."""
+    scene_dir = args.build_dir / scene
+    if m == 0:
+        return scene_dir / "models" / run_name(variant, k)
+    out = args.work_dir / scene / f"{run_name(variant, k)}_m{m}"
+    if (out / "eval.json").exists():
+        return out
+    seed = json.loads((args.build_dir / "params/tool-train" / f"{run_name(variant, k)}.json").read_text())["values"]["seed"]
+    cmd = [sys.executable, "-m", "tactilepipe", "tool-train", "--scale", args.scale,
+           "--override", json.dumps({"seed": seed + 1000 * m}), "--run", run_name(variant, k), "--scene", scene,
+           "--data-dir", str(scene_dir / "data"), "--split", str(scene_dir / "splits" / f"{split_name(k)}.json"),
+           "--out-dir", str(out), "--quiet"]
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        sys.exit(f"study_noise: {' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
+    print(f"  trained {scene} {run_name(variant, k)} seed {m} in {time.perf_counter() - t0:.0f} s", flush=True)
+    return out
+
+
+def baseline_errors(args, scene: str, k: int) -> pd.Series:
+    """|error| of the tactile-RMSE linear fit on split k's test rows, by sample index (deterministic: no seed)."""
+    data = ToolFrames(args.build_dir / scene / "data", scene_label(scene))
+    split = json.loads((args.build_dir / scene / "splits" / f"{split_name(k)}.json").read_text())
+    features = tactile_rmse_features(data.frames, data.references, data.trial_index)
+    test = np.asarray(split["test"])
+    pred = linear_fit_predictions(data.labels, features, split)
+    return pd.Series(np.abs(pred - data.labels[test]), index=test)
+
+
+def errors(run_dir: Path) -> pd.DataFrame:
+    p = pd.read_parquet(run_dir / "predictions.parquet").set_index("index")
+    return p.assign(abs_err=(p["pred"] - p["true"]).abs())
+
+
+def study_scene(args, scene: str, pool: ThreadPoolExecutor) -> dict:
+    variants = sorted({v for pair in ORDERINGS[scene] for v in pair if v != BASELINE})
+    jobs = {(v, k, m): pool.submit(train, args, scene, v, k, m)
+            for m in range(args.seeds) for k in range(args.splits) for v in variants}
+    runs = {key: errors(job.result()) for key, job in jobs.items()}
+    costs = [json.loads((jobs[key].result() / "eval.json").read_text())["train_s"] for key in jobs]
+    base = {k: baseline_errors(args, scene, k) for k in range(args.splits)}
+    splits = [json.loads((args.build_dir / scene / "splits" / f"{split_name(k)}.json").read_text())
+              for k in range(args.splits)]
+    ratio = float(np.mean([len(s["test"]) / len(s["train"]) for s in splits]))
+    rows = []
+    for better, worse in ORDERINGS[scene]:
+        d = np.zeros((args.splits, args.seeds))
+        tv = np.zeros_like(d)
+        for k in range(args.splits):
+            for m in range(args.seeds):
+                a = runs[(better, k, m)]
+                b = base[k] if worse == BASELINE else runs[(worse, k, m)]["abs_err"]
+                b = b.reindex(a.index)
+                d[k, m] = a["abs_err"].mean() - b.mean()
+                tv[k, m] = bootstrap_difference_variance(a["abs_err"], b, a["trial"], seed=k * 100 + m)
+        parts = decompose(d, tv, ratio)
+        rows.append({"ordering": f"{better} < {worse}", **parts,
+                     **{f"half_K{K}_M{M}": half_width(parts, K, M) for K, M in DESIGNS}})
+    return {"scene": scene, "rows": rows, "run_s_median": float(np.median(costs)), "test_train_ratio": ratio}
+
+
+def table(result: dict) -> str:
+    head = ("| ordering | mean diff (N) | sd split | sd seed | sd test | sd composition | "
+            + " | ".join(f"±K{K} M{M}" for K, M in DESIGNS) + " |")
+    lines = [f"### {result['scene']} ({args_text(result)})", "", head, "|" + "---|" * (6 + len(DESIGNS))]
+    for r in result["rows"]:
+        sd = [np.sqrt(r[k]) for k in ("var_split", "var_seed", "var_test", "var_composition")]
+        lines.append(f"| {r['ordering']} | {r['mean']:+.3f} | " + " | ".join(f"{v:.3f}" for v in sd) + " | "
+                     + " | ".join(f"{r[f'half_K{K}_M{M}']:.3f}" for K, M in DESIGNS) + " |")
+    return "\n".join(lines)
+
+
+def args_text(result: dict) -> str:
+    r = result["rows"][0]
+    return (f"{r['splits']} splits x {r['seeds']} seeds, n_test/n_train {result['test_train_ratio']:.2f}, "
+            f"a run takes {result['run_s_median']:.0f} s (median)")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--build-dir", type=Path, default=REPO / "results" / "default", help="a built build's folder")
+    ap.add_argument("--scale", default="default", help="the scale the build was made at")
+    ap.add_argument("--scenes", nargs="+", default=["tool_normal", "tool_shear"], choices=sorted(ORDERINGS))
+    ap.add_argument("--splits", type=int, default=3)
+    ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--jobs", type=int, default=2, help="training runs at once (one thread each)")
+    ap.add_argument("--work-dir", type=Path, default=REPO / ".tactilepipe" / "study_noise")
+    ap.add_argument("--out", type=Path, help="also write the numbers as JSON")
+    args = ap.parse_args()
+    if args.splits < 2 or args.seeds < 2:
+        sys.exit("study_noise: --splits and --seeds must be at least 2 (a spread needs two draws)")
+    t0 = time.perf_counter()
+    with ThreadPoolExecutor(args.jobs) as pool:
+        results = [study_scene(args, scene, pool) for scene in args.scenes]
+    for result in results:
+        print(table(result) + "\n")
+    print(f"Standard deviations of the paired MAE difference (N); ±: the 95 % half-width under K repeated splits "
+          f"with M model seeds each. Whole study: {time.perf_counter() - t0:.0f} s.")
+    if args.out:
+        write_json(args.out, {"results": results, "designs": DESIGNS})
+
+
+if __name__ == "__main__":
+    main()
