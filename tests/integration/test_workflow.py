@@ -505,3 +505,27 @@ def test_a_copy_run_with_the_other_checkouts_venv_stops_snakemake_in_one_line(tm
                          env=_without_pythonpath(PYTHONPATH=str(wd / "src")))
     assert own.returncode == 0 and "error: " not in own.stderr, own.stderr[-2000:]
 
+
+def _version(wd: Path) -> str:
+    # run from outside the checkout: the commit is that of the package's checkout, not of the folder
+    proc = subprocess.run([str(BIN / "tactilepipe"), "--version"], cwd=wd.parent, capture_output=True, text=True,
+                          timeout=60, env=_without_pythonpath(PYTHONPATH=str(wd / "src")))
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    return proc.stdout.strip()
+
+
+def test_version_names_the_commit_of_the_checkout_the_code_is_imported_from(tmp_path: Path):
+    wd = tmp_path / "copy"
+    wd.mkdir()
+    copy_project(wd)
+    shutil.copy(REPO / ".gitignore", wd / ".gitignore")     # Python's bytecode caches are not changes
+    package = (wd / "src" / "tactilepipe").resolve()
+    assert _version(wd) == f"tactilepipe 0.1.0 (not in a git checkout) from {package}"
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@example.org"]
+    for args in (["init", "-q"], ["add", "-A"], ["commit", "-q", "-m", "copy"]):
+        subprocess.run([*git, *args], cwd=wd, check=True, capture_output=True)
+    commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=wd, capture_output=True, text=True).stdout.strip()
+    assert _version(wd) == f"tactilepipe 0.1.0 (commit {commit[:12]}) from {package}"
+    with open(wd / "src" / "tactilepipe" / "pipeline" / "scenes.py", "a") as f:
+        f.write("# an edit not committed\n")
+    assert _version(wd) == f"tactilepipe 0.1.0 (commit {commit[:12]}, modified) from {package}"
