@@ -194,5 +194,5 @@ report: "../report/workflow.rst"
 
 def reported(files, scene):
     """Outputs, those of the report marked as its items (pipeline/scenes.py report_items)."""
-    return [f if caption is None else report(f, caption=caption, category=scene, subcategory=kind)
-            for f, caption, kind in scenes.report_items(files, scene, P)]
+    return [f if caption is None else report(f, caption=caption, category=scene, subcategory=kind, labels=labels)
+            for f, caption, kind, labels in scenes.report_items(files, scene, P)]
