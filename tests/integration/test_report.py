@@ -132,3 +132,22 @@ def test_the_landing_page_opens_at_its_title_with_table_1_in_view(report, tmp_pa
     assert layout["title"] and layout["table"], layout
     (title_top, title_bottom), (table_top, table_bottom), view = layout["title"], layout["table"], layout["view"]
     assert 0 <= title_top < title_bottom < table_top < table_bottom <= view, layout
+
+
+def test_every_item_carries_a_readable_label_and_a_caption_of_its_data_scale_and_split(report):
+    """The result tables list items by label, not by file name, and each caption says which data,
+    scale and split the item shows, without dumps of parameter groups."""
+    line = next(l for l in report["html"].splitlines() if l.strip().startswith("var results = {"))
+    items = json.loads(line.strip()[len("var results = "):].rstrip(";"))
+    assert len(items) > 40
+    for path, item in items.items():
+        label = (item["labels"] or {}).get("result", "")
+        assert label and not re.search(r"[_/]|\.(png|html|json|md)$", label), (path, item["labels"])
+        caption = item["caption"]
+        text = re.sub(r"<[^>]+>", "", caption)
+        scene = path.split("/")[2]
+        study = {"volume": "study 001", "drift": "study 001", "tool_normal": "study 000, normal force",
+                 "tool_shear": "study 000, shear force"}[scene]
+        assert f"simulated session sim-smoke ({study}), scale smoke." in text, (path, text)
+        assert "Split: " in text, (path, text)
+        assert "{'" not in text and "{&#x27;" not in caption and "overlay" not in text, (path, text)
