@@ -187,8 +187,8 @@ def provenance_inputs(scene):
         [STAMPS.run(r) for r in runs]
 
 
-# `snakemake --report report.html`: every figure, table and metrics file, each with a caption that
-# names the parameters behind it (workflow/report/); the front page lists all parameters.
+# `snakemake --report report.html`: every figure, table and metrics file, each with a label and a caption
+# saying which data, scale and split it shows (workflow/report/); the front page lists all parameters.
 report: "../report/workflow.rst"
 
 
