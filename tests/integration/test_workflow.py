@@ -478,3 +478,54 @@ def test_a_new_stage_is_its_declaration_and_builds_through_snakemake_and_dvc(smo
     assert "volume_summary" in out.stdout + out.stderr                     # Snakemake inside ran exactly it
     status = json.loads(run([str(BIN / "dvc"), "status", "--json", "volume"], wd).stdout or "{}")
     assert status == {}, status
+
+
+# --- one checkout, one code ----------------------------------------------------------------------
+
+def _without_pythonpath(**extra: str) -> dict:
+    return {**{k: v for k, v in ENV.items() if k != "PYTHONPATH"}, **extra}
+
+
+def test_a_copy_run_with_the_other_checkouts_venv_stops_snakemake_in_one_line(tmp_path: Path):
+    """A copy of the project beside this one, run with this checkout's venv (whose editable install
+    imports this checkout's src/), would plan and track this checkout's code: it stops instead,
+    naming both folders. Given its own code (PYTHONPATH), the same copy plans its jobs."""
+    import tactilepipe
+    wd = copy_project(tmp_path)
+    imported = Path(tactilepipe.__file__).resolve().parent
+    assert imported != (wd / "src" / "tactilepipe").resolve()
+    dry = [str(BIN / "snakemake"), "-n", "--cores", "2"]
+    proc = subprocess.run(dry, cwd=wd, capture_output=True, text=True, timeout=120, env=_without_pythonpath())
+    assert proc.returncode != 0
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), proc.stderr
+    assert f"{(wd / 'src' / 'tactilepipe').resolve()}," in lines[0] and f"from {imported}:" in lines[0], lines[0]
+    assert "jobs" not in proc.stdout, proc.stdout[-2000:]
+    own = subprocess.run(dry, cwd=wd, capture_output=True, text=True, timeout=300,
+                         env=_without_pythonpath(PYTHONPATH=str(wd / "src")))
+    assert own.returncode == 0 and "error: " not in own.stderr, own.stderr[-2000:]
+
+
+def _version(wd: Path) -> str:
+    # run from outside the checkout: the commit is that of the package's checkout, not of the folder
+    proc = subprocess.run([str(BIN / "tactilepipe"), "--version"], cwd=wd.parent, capture_output=True, text=True,
+                          timeout=60, env=_without_pythonpath(PYTHONPATH=str(wd / "src")))
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    return proc.stdout.strip()
+
+
+def test_version_names_the_commit_of_the_checkout_the_code_is_imported_from(tmp_path: Path):
+    wd = tmp_path / "copy"
+    wd.mkdir()
+    copy_project(wd)
+    shutil.copy(REPO / ".gitignore", wd / ".gitignore")     # Python's bytecode caches are not changes
+    package = (wd / "src" / "tactilepipe").resolve()
+    assert _version(wd) == f"tactilepipe 0.1.0 (not in a git checkout) from {package}"
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@example.org"]
+    for args in (["init", "-q"], ["add", "-A"], ["commit", "-q", "-m", "copy"]):
+        subprocess.run([*git, *args], cwd=wd, check=True, capture_output=True)
+    commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=wd, capture_output=True, text=True).stdout.strip()
+    assert _version(wd) == f"tactilepipe 0.1.0 (commit {commit[:12]}) from {package}"
+    with open(wd / "src" / "tactilepipe" / "pipeline" / "scenes.py", "a") as f:
+        f.write("# an edit not committed\n")
+    assert _version(wd) == f"tactilepipe 0.1.0 (commit {commit[:12]}, modified) from {package}"

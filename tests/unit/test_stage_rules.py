@@ -75,3 +75,23 @@ def test_a_new_stage_module_with_a_mistake_is_one_error_naming_it(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
     assert "cli/volume_summary.py: cannot be imported (ImportError" in proc.stderr, proc.stderr
+
+
+def test_every_report_item_has_its_caption_file_and_a_readable_label(smoke_params):
+    """What the rules mark for the report (workflow/rules/*.smk `reported`): each item's caption
+    is a file of workflow/report/, every caption file is used, and each item has a label."""
+    from pathlib import Path
+    from tactilepipe.pipeline import scenes
+    res = "results/smoke"
+    tool = [f"{res}/{{scene}}/qc.md", f"{res}/{{scene}}/metrics.json"] + \
+        [f"{res}/{{scene}}/figures/{f}.png" for f in scenes.TOOL_DATA_FIGURES + scenes.tool_model_figures(smoke_params)] + \
+        [f"{res}/{{scene}}/tables/{t}.md" for t in scenes.tool_model_tables(smoke_params)]
+    items = scenes.report_items(scenes.report_outputs("volume", res), "volume", smoke_params) + \
+        scenes.report_items(scenes.report_outputs("drift", res), "drift", smoke_params) + \
+        scenes.report_items(tool, "{scene}", smoke_params)
+    report_dir = Path(__file__).resolve().parents[2] / "workflow" / "report"
+    captions = {caption for _, caption, _, _ in items if caption}
+    assert captions == {f"../report/{p.relative_to(report_dir)}" for p in report_dir.glob("*/*.rst")}
+    for f, caption, kind, labels in items:
+        assert (caption is None) == (labels is None), f
+        assert labels is None or (labels["result"] and "_" not in labels["result"]), (f, labels)

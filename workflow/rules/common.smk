@@ -188,12 +188,12 @@ def provenance_inputs(scene):
         [STAMPS.run(r) for r in runs]
 
 
-# `snakemake --report report.html`: every figure, table and metrics file, each with a caption that
-# names the parameters behind it (workflow/report/); the front page lists all parameters.
+# `snakemake --report report.html`: every figure, table and metrics file, each with a label and a caption
+# saying which data, scale and split it shows (workflow/report/); the front page lists all parameters.
 report: "../report/workflow.rst"
 
 
 def reported(files, scene):
     """Outputs, those of the report marked as its items (pipeline/scenes.py report_items)."""
-    return [f if caption is None else report(f, caption=caption, category=scene, subcategory=kind)
-            for f, caption, kind in scenes.report_items(files, scene, P)]
+    return [f if caption is None else report(f, caption=caption, category=scene, subcategory=kind, labels=labels)
+            for f, caption, kind, labels in scenes.report_items(files, scene, P)]

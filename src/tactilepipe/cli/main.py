@@ -39,6 +39,7 @@ def declare_commands() -> None:
 def build_parser() -> argparse.ArgumentParser:
     declare_commands()
     parser = argparse.ArgumentParser(prog="tactilepipe", description="every pipeline stage of tactilepipe")
+    parser.add_argument("--version", action=_PrintVersion)
     settings = argparse.ArgumentParser(add_help=False)
     settings.add_argument("--params", default="params.yaml", help="parameter file (default: params.yaml)")
     settings.add_argument("--scale", help="smoke | default | paper (overrides params.yaml)")
@@ -55,6 +56,33 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="STAGE")
     add_commands(sub, settings, provenance)
     return parser
+
+
+class _PrintVersion(argparse.Action):
+    """--version: the version and the checkout's commit, asked of git only when the option is given."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS,
+                         help="print the version, the git commit of the checkout the code is imported from, and exit")
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(version_line())
+        parser.exit()
+
+
+def version_line() -> str:
+    """The version, the commit of the checkout the package is imported from ("modified" when its
+    code or parameters have uncommitted changes) and that folder: two checkouts sharing a venv
+    cannot be mistaken for each other."""
+    from pathlib import Path
+    from tactilepipe.core.environment import git_state
+    package = Path(tactilepipe.__file__).resolve().parent
+    state = git_state(package.parents[1])        # src/tactilepipe -> the checkout
+    if state["commit"] is None:
+        where = "not in a git checkout"
+    else:
+        where = f"commit {state['commit'][:12]}" + (", modified" if state["uncommitted_changes"] else "")
+    return f"tactilepipe {tactilepipe.__version__} ({where}) from {package}"
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -101,24 +101,53 @@ def report_outputs(name: str, results: str) -> list[str]:
     return [f"{results}/{name}/{f}" for f in {"volume": VOLUME_OUTPUTS, "drift": DRIFT_OUTPUTS}[name]]
 
 
-def report_items(files, scene_name: str, p: dict) -> list[tuple[str, str | None, str | None]]:
-    """(file, caption, subcategory) of each output, for `snakemake --report`: caption None for an
-    output that is not a report item (provenance, run times; a Markdown table, whose HTML twin is
-    the item: the report shows HTML as a page, Markdown only as a download). ``scene_name`` may be
-    the rules' "{scene}" wildcard: tool scenes share the tool captions (workflow/report/tool/)."""
+# What the report's result tables call each item (workflow/report/<group>/<caption>.rst), in place
+# of its file name; a tool scene's items share the tool labels (the category names the scene).
+REPORT_LABELS = {
+    "volume": {"metrics": "Metrics of the volume scene", "table1_r2": "Table 1: R² of each force input and the baseline",
+               "table2_volumes": "Table 2: estimated volume per true volume",
+               "unseen_volumes": "Volumes never seen in training", "runtime": "Fit and prediction time per method",
+               "grid_search": "MLP grid search", "r2_by_modality": "R² of each force input and the baseline",
+               "mu_r2_curve": "Baseline R² against the friction coefficient μ",
+               "true_vs_estimated": "True against estimated volume", "error_vs_runtime": "R² against run time",
+               "pillar_map": "Per-pillar forces during a hold"},
+    "drift": {"metrics": "Metrics of the drift scene", "fits": "Drift fits and recalibration interval",
+              "drift_curves": "Drift with the fitted curves"},
+    "tool": {"metrics": "Metrics of the scene", "qc": "Quality control of the data stages",
+             "force_histogram": "Histogram of the force labels", "force_profiles": "Force profiles of the trials",
+             "rmse_vs_force": "Image change against force", "pressing_strip": "DIGIT frames across one press",
+             "sorted_predictions": "Test predictions sorted by true force",
+             "over_time": "Predicted and true force over time", "per_tool": "Error per tool",
+             "per_tool_table": "Error per tool", "window_heatmap": "Error per force window and variant",
+             "per_window": "Error per force window", "regression": "Predicted against true force",
+             "error_vs_runtime": "Error against run time", "runtime": "Training time and inference latency",
+             "intervals": "Variants and baselines over the repeated splits",
+             "intervals_table": "Variants and baselines over the repeated splits",
+             "variants": "Every variant and baseline, one split", "differences": "Paired differences between variants",
+             "paper_orderings": "Study 000's orderings of the variants, judged",
+             "loto": "Leave one tool out: error per held-out tool",
+             "loto_table": "Leave one tool out: error per held-out tool"},
+}
+
+
+def report_items(files, scene_name: str, p: dict) -> list[tuple[str, str | None, str | None, dict | None]]:
+    """(file, caption, subcategory, labels) of each output, for `snakemake --report`: caption None
+    for an output that is not a report item (provenance, run times; a Markdown table, whose HTML
+    twin is the item: the report shows HTML as a page, Markdown only as a download). ``scene_name``
+    may be the rules' "{scene}" wildcard: tool scenes share the tool captions (workflow/report/tool/)."""
     group = scene_name if scene_name in ("volume", "drift") else "tool"
     out = []
     for f in files:
         path = Path(f)
         if path.name in ("provenance.json", "runtime.json"):
-            out.append((f, None, None))
+            out.append((f, None, None, None))
             continue
         if path.suffix == ".md" and path.name != "qc.md":
-            out.append((f, None, None))
+            out.append((f, None, None, None))
             f, path = str(path.with_suffix(".html")), path.with_suffix(".html")
         kind = {".png": "figures", ".json": "metrics"}.get(path.suffix, "tables")
         # a tool table named like a figure has its own caption
         stem = f"{path.stem}_table" if group == "tool" and path.suffix == ".html" and \
             path.stem in tool_model_figures(p) else path.stem
-        out.append((f, f"../report/{group}/{stem}.rst", kind))
+        out.append((f, f"../report/{group}/{stem}.rst", kind, {"result": REPORT_LABELS[group][stem]}))
     return out
