@@ -112,3 +112,10 @@ def test_orderings_without_a_full_model_are_never_equivalent():
     assert math.isnan(row["margin"]) and row["verdict"] == "undecided"
     assert "equivalence not judged" in row["power"]
 
+
+def test_a_margin_wider_than_a_tenth_of_the_full_models_mae_is_refused():
+    from tactilepipe.core.config import load_params
+    from tactilepipe.core.errors import ConfigError
+    assert load_params()["tool_report"]["equivalence_margin"] == 0.1
+    with pytest.raises(ConfigError, match=r"at 'tool_report.equivalence_margin': 0.2 is greater than the maximum of 0.1"):
+        load_params(overrides={"tool_report": {"equivalence_margin": 0.2}})
