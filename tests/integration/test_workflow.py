@@ -11,6 +11,7 @@ import subprocess
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 import torch
 import yaml
@@ -95,7 +96,8 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_build: Path):
         # leave-one-tool-out: every tool of the smoke session held out in turn, with the mean over tools
         assert set(tm["loto"]["per_tool"]) == {"screwdriver_1", "paper_knife", "spatula"}
         assert tm["loto"]["over_tools"]["mae"]["n"] == 3
-        assert tm["paper_orderings"] and {o["verdict"] for o in tm["paper_orderings"]} <= {"holds", "reversed", "undecided"}
+        assert tm["paper_orderings"] and {o["verdict"] for o in tm["paper_orderings"]} <= {"holds", "reversed",
+                                                                                           "equivalent", "undecided"}
         runtime = json.loads((results(wd) / f"{scene}/runtime.json").read_text())
         assert all(r["train_s"] > 0 and r["latency_ms"] > 0 for r in runtime.values()) and "full" in runtime
         prov = json.loads((results(wd) / f"{scene}/provenance.json").read_text())
@@ -113,6 +115,36 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_build: Path):
     # every rule logs; raw recordings are bags, shards are Parquet
     assert len(list((results(wd) / "logs").rglob("*.log"))) > 10
     assert list((wd / "raw/volume/sim-smoke").glob("*.bag")) and (wd / "raw/volume/sim-smoke/lifts.csv").exists()
+
+
+def test_every_ordering_verdict_follows_its_stored_interval_and_margin(smoke_build: Path):
+    """Each judged ordering of the smoke build (and the full model against its like-for-like
+    baseline) carries the verdict its interval and margin give, in metrics.json and in the table."""
+    from tactilepipe.core.intervals import half_width
+    for scene in ("tool_normal", "tool_shear"):
+        tm = json.loads((results(smoke_build) / f"{scene}/metrics.json").read_text())
+        margin = tm["equivalence_margin"]["n"]
+        assert tm["equivalence_margin"]["fraction_of_full_mae"] == 0.1
+        assert margin == pytest.approx(0.1 * tm["full"]["over_splits"]["mae"]["mean"])
+        rows = tm["paper_orderings"] + [tm["full_versus_baseline"]]
+        assert tm["full_versus_baseline"]["claim"] == "full < tactile_rmse_linear (MAE)"
+        for r in rows:
+            low, high = r["low"], r["high"]
+            expected = "equivalent" if -margin < low and high < margin else \
+                "holds" if low > 0 else "reversed" if high < 0 else "undecided"
+            assert r["margin"] == margin and r["verdict"] == expected, (scene, r)
+            assert (r["equivalence_p"] < 0.025) == (expected == "equivalent"), (scene, r)
+            assert bool(r["power"]) == (expected == "undecided"), (scene, r)
+            # any K the power line names narrows the interval enough (the spread read back off it)
+            for key, target in (("repeats_to_order", abs(r["mae_difference"])),
+                                ("repeats_to_equivalence", margin - abs(r["mae_difference"]))):
+                if r[key] is not None:
+                    spread = (high - low) / 2 / half_width(1.0, tm["repeats"], test_train_ratio=tm["test_train_ratio"])
+                    assert half_width(spread, r[key], test_train_ratio=tm["test_train_ratio"]) < target, (scene, r)
+        table = pd.read_csv(results(smoke_build) / f"{scene}/tables/paper_orderings.csv")
+        assert list(table["verdict"]) == [r["verdict"] for r in rows]
+        assert list(table["claim"]) == [r["claim"] for r in rows]
+        assert np.allclose(table["margin"], margin)
 
 
 def test_second_run_has_nothing_to_do(smoke_build: Path):

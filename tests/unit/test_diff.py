@@ -244,3 +244,24 @@ def test_draws_whose_baselines_score_alike_are_paired_though_earlier_code_change
     assert _row(diff.compare_scene("tool_normal", six, new), "full", "mae").how == "paired over 5 shared draws"
     new["metrics"]["test_pairs_per_split"] = [7] * 8                              # other test sets
     assert _row(diff.compare_scene("tool_normal", six, new), "full", "mae").how == "intervals"
+
+
+def test_an_old_revisions_two_way_orderings_are_read_against_the_four_way_ones():
+    """A revision from before the equivalence margin judged orderings 'holds' or 'undecided' with no
+    margin or power line; the diff reads it against today's rows, naming what changed."""
+    from tactilepipe.tool.report.verdicts import margin_n, paper_orderings
+    full, no_gam = BASE, [b + (0.01 if i % 2 else -0.005) for i, b in enumerate(BASE)]
+    scores = {"full": {"mae": full}, "no_gam": {"mae": no_gam}}
+    old, new = _tool_run(full=full, no_gam=no_gam), _tool_run(full=full, no_gam=no_gam)
+    new["metrics"]["paper_orderings"] = paper_orderings("tool_normal", scores, 0.2, margin_n(scores, 0.1))
+    old["metrics"]["paper_orderings"] = [{k: new["metrics"]["paper_orderings"][0][k] for k in
+                                          ("claim", "better", "worse", "mae_difference", "low", "high")}
+                                         | {"verdict": "undecided"}]
+    d = diff.compare_scene("tool_normal", old, new)
+    assert new["metrics"]["paper_orderings"][0]["verdict"] == "equivalent"
+    flip = _row(d, "", "paper_orderings.0.verdict")
+    assert (flip.old, flip.new, flip.verdict) == ("undecided", "equivalent", "changed")
+    assert _row(d, "", "paper_orderings.0.margin").verdict == "added"
+    assert _row(d, "", "paper_orderings.0.power").new == ""
+    assert d.verdict == "scores unchanged; 7 other values changed", d.verdict
+    assert "| paper_orderings.0.verdict | undecided | equivalent | " in diff.markdown([d], "A", "B", show_same=True)

@@ -146,7 +146,7 @@ def _train_run(args) -> dict:
 @command("tool-model-report", "metrics.json, tables and figures of a tool scene's models",
          checks=TOOL_CHECKS,
          params=("tool_train.variants", "tool_train.split", "tool_train.depth", "tool_train.image_size",
-                 "tool_train.sweep", "tool_variants"),
+                 "tool_train.sweep", "tool_variants", "tool_report.equivalence_margin"),
          graph=("tool_sessions", "tool_train.loto", "tool_split.repeats"),
          args=(SCENE, arg("--in-dir", required=True),
                arg("--runs", nargs="+", required=True,
@@ -154,7 +154,8 @@ def _train_run(args) -> dict:
          provenance=True)
 def cmd_tool_model_report(args, p) -> None:
     from tactilepipe.tool.report.models import build_model_report
-    build_model_report(Path(args.in_dir), args.scene, p["tool_train"], p["tool_variants"], args.runs)
+    build_model_report(Path(args.in_dir), args.scene, p["tool_train"], p["tool_variants"], args.runs,
+                       p["tool_report"]["equivalence_margin"])
     from tactilepipe.cli.provenance import write_scene_provenance
     write_scene_provenance(args, Path(args.in_dir))
 

@@ -90,3 +90,64 @@ def ranking_text(rows: list[dict]) -> str:
         if "next" in row:
             parts.append(">" if row["separated_from_next"] else "≈")
     return " ".join(parts)
+
+
+def _standard_error(std: float, n: int, test_train_ratio: float) -> float:
+    return std * math.sqrt(1.0 / n + test_train_ratio)
+
+
+def equivalence_p(mean: float, std: float, n: int, margin: float, test_train_ratio: float = 0.0) -> float:
+    """Two one-sided tests (TOST) that a mean difference lies inside (-margin, margin), on the corrected
+    resampled t of ``interval`` (standard error s·sqrt(1/n + n_test/n_train), n - 1 degrees of freedom).
+
+    Returns the larger of the two one-sided p-values, of H0 "difference <= -margin" (t = (mean +
+    margin)/se) and of H0 "difference >= margin" (t = (mean - margin)/se). Equivalence is shown at
+    ``level`` when it is below (1 - level)/2: each one-sided test at the tail the two-sided
+    ``level`` interval leaves on its side, which is exactly "the interval lies inside the margin".
+    NaN without two draws or a finite positive margin.
+    """
+    if n < 2 or not (math.isfinite(std) and math.isfinite(margin) and margin > 0):
+        return math.nan
+    se = _standard_error(std, n, test_train_ratio)
+    if se == 0.0:
+        return 0.0 if abs(mean) < margin else 1.0
+    below = float(stats.t.sf((mean + margin) / se, n - 1))
+    above = float(stats.t.cdf((mean - margin) / se, n - 1))
+    return max(below, above)
+
+
+def half_width(std: float, k: float, level: float = LEVEL, test_train_ratio: float = 0.0) -> float:
+    """The half-width of ``interval`` on k draws of spread ``std``: t(level, k - 1)·s·sqrt(1/k + r);
+    k = inf gives the floor z(level)·s·sqrt(r) that no number of draws goes below."""
+    if math.isinf(k):
+        return float(stats.norm.ppf(0.5 + level / 2)) * std * math.sqrt(test_train_ratio)
+    return float(stats.t.ppf(0.5 + level / 2, k - 1)) * _standard_error(std, int(k), test_train_ratio)
+
+
+def repeats_for_half_width(std: float, target: float, level: float = LEVEL, test_train_ratio: float = 0.0,
+                           most: int = 10**9) -> int | None:
+    """The fewest draws K >= 2 whose interval half-width is below ``target``, if the spread stays ``std``.
+
+    With r = n_test/n_train held (the same split fractions), the half-width
+        h(K) = t(level, K - 1) · s · sqrt(1/K + r)
+    falls with K towards the floor h(inf) = z(level) · s · sqrt(r): 1/K is the part more draws
+    remove, r the part they cannot (every draw tests on as few trials as before). So when
+    ``target`` <= h(inf) no K reaches it at this data size and the answer is None; otherwise the
+    smallest K with h(K) < target (h falls monotonically: bisection). None also past ``most``.
+    """
+    if not (math.isfinite(std) and math.isfinite(target)) or target <= 0:
+        return None
+    if target <= half_width(std, math.inf, level, test_train_ratio):
+        return None
+    low, high = 1, 2                                 # h(low) >= target (h(1) is infinite), h(high)?
+    while half_width(std, high, level, test_train_ratio) >= target:
+        if high >= most:
+            return None
+        low, high = high, min(2 * high, most)
+    while high - low > 1:
+        mid = (low + high) // 2
+        if half_width(std, mid, level, test_train_ratio) >= target:
+            low = mid
+        else:
+            high = mid
+    return high

@@ -6,8 +6,8 @@ from pydantic import Field
 
 from tactilepipe.core.parameters.base import BuildName, Group, RequiredKeys, SessionName, UniqueList, overlay_of
 from tactilepipe.core.parameters.resources import Resources
-from tactilepipe.core.parameters.tool import (Predict, PublicData, ToolIngest, ToolSplit, ToolSync, ToolTrain, ToolVariant,
-                                              VariantName)
+from tactilepipe.core.parameters.tool import (Predict, PublicData, ToolIngest, ToolReport, ToolSplit, ToolSync, ToolTrain,
+                                              ToolVariant, VariantName)
 from tactilepipe.core.parameters.tool_sim import SimulateTool
 from tactilepipe.core.parameters.volume import (Baseline, Drift, Folds, Mlp, PapillarrayAxes, PapillarrayIngest,
                                                 Segment, SimulateDrift, SimulateVolume, VolumeChecks, VolumeRegimes)
@@ -31,6 +31,7 @@ class ParameterGroups(Group):
     tool_split: ToolSplit
     simulate_tool: SimulateTool
     tool_train: ToolTrain
+    tool_report: ToolReport
     predict: Predict
     resources: Resources
     volume_regimes: VolumeRegimes

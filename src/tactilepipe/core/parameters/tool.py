@@ -165,6 +165,16 @@ class ToolTrain(Group):
                     "no oneDNN) or native (each library's fastest code for this CPU)")
 
 
+class ToolReport(Group):
+    """How the model report judges the variants' orderings (tool/report/verdicts.py)."""
+
+    equivalence_margin: float = Field(
+        gt=0, le=0.1, description="two variants whose MAE differs by less than this fraction of the full model's "
+                                  "mean MAE are equivalent (when the whole 95 % interval of the difference lies "
+                                  "inside it). At most 0.1: a wider margin would call differences that matter "
+                                  "no difference")
+
+
 class Predict(Group):
     """`tactilepipe predict`: one frame pair at a time, on a CPU other jobs share."""
 

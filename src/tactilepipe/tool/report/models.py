@@ -87,9 +87,11 @@ def baseline_draws(data: ToolFrames, splits: list[dict]) -> list[dict[str, dict]
     return out
 
 
-def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_variants: dict, runs: list[str]) -> dict:
+def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_variants: dict, runs: list[str],
+                       equivalence_margin: float) -> dict:
     """metrics.json, tables and figures of ``runs``; ``tool_train`` and ``tool_variants`` are the
-    resolved parameter groups (tool_train.variants a list: core.config.resolve spells out "all")."""
+    resolved parameter groups (tool_train.variants a list: core.config.resolve spells out "all");
+    ``equivalence_margin`` is params.yaml's tool_report.equivalence_margin (tool/report/verdicts.py)."""
     label = scene_label(scene)
     looks = defined_variants(tool_variants)
     models, tables, figs = scene_dir / "models", scene_dir / "tables", scene_dir / "figures"
@@ -131,7 +133,11 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
     metrics["ablation_order_by_mae"] = [r["method"] for r in rows]
     metrics["ablation_ranking_by_mae"] = text
     metrics["ablation_ranking_rows"] = rows
-    metrics["paper_orderings"] = verdicts.paper_orderings(scene, {v: scores[v] for v in variants}, ratio)
+    margin = verdicts.margin_n(scores, equivalence_margin)
+    metrics["equivalence_margin"] = {"fraction_of_full_mae": equivalence_margin, "n": margin}
+    metrics["paper_orderings"] = verdicts.paper_orderings(scene, {v: scores[v] for v in variants}, ratio, margin)
+    if "full" in scores:          # the like-for-like baseline, judged the same four ways
+        metrics["full_versus_baseline"] = verdicts.judge("full", looks["full"].baseline, scores, margin, ratio)
     metrics["beats_baselines"] = {v: metrics[v]["beats_baselines"] for v in variants}
     metrics["every_variant_beats_baselines"] = all(metrics["beats_baselines"].values())
     metrics["split"] = split_names[0]
@@ -163,12 +169,14 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
                 "mean ± std and 95 % interval (Nadeau-Bengio corrected)", "{:.3f}")
     write_table(_differences_table(metrics, variants), tables / "differences",
                 f"{scene}: paired differences over the {k_repeats} repeats, 95 % intervals", "{:.3f}")
-    orderings = pd.DataFrame(metrics["paper_orderings"], columns=verdicts.ORDERING_FIELDS)
-    write_table(orderings.drop(columns=["better", "worse"]), tables / "paper_orderings",
-                f"{scene}: the study's orderings of the variants, judged on the paired MAE difference (worse − better) "
-                f"over the {k_repeats} repeats" + ("" if len(orderings) else
-                                                   f" (none: no ordering is between two of {', '.join(variants)})"),
-                "{:.3f}")
+    write_table(_orderings_table(metrics), tables / "paper_orderings",
+                f"{scene}: the study's orderings of the variants, and the full model against its like-for-like "
+                f"baseline, judged on the paired MAE difference (worse − better) over the {k_repeats} repeats: "
+                f"holds, reversed, equivalent (95 % interval inside ±margin, {equivalence_margin:g} of the full "
+                "model's mean MAE) or undecided, with the repeats that would decide it"
+                + ("" if metrics["paper_orderings"] else
+                   f" (none: no ordering is between two of {', '.join(variants)})"), "{:.3f}",
+                machine_only=("equivalence_p", "repeats_to_order", "repeats_to_equivalence"))   # the power line says them
     pt = pd.concat([pd.DataFrame(evals[plan.repeats[v][0]]["per_tool"]).assign(model=v) for v in variants],
                    ignore_index=True)
     pw = pd.concat([pd.DataFrame(evals[plan.repeats[v][0]]["per_window"]).assign(model=v) for v in variants],
@@ -201,6 +209,16 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
     if plan.loto:
         fm.loto_bars(metrics["loto"], label, figs / "loto.png", looks=looks)
     return metrics
+
+
+def _orderings_table(metrics: dict) -> pd.DataFrame:
+    """The judged orderings, then the full model against its baseline; repeats as integers or blank."""
+    rows = metrics["paper_orderings"] + ([metrics["full_versus_baseline"]] if "full_versus_baseline" in metrics else [])
+    table = pd.DataFrame(rows, columns=verdicts.ORDERING_FIELDS).drop(columns=["better", "worse"])
+    for col in ("repeats_to_order", "repeats_to_equivalence"):
+        table[col] = table[col].astype("Int64")
+    table["excludes_zero"] = table["excludes_zero"].map({True: "yes", False: "no"})
+    return table
 
 
 def _interval_table(summary: dict[str, dict]) -> pd.DataFrame:
