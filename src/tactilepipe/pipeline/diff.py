@@ -153,7 +153,9 @@ def read_run(rev: str | None, repo: str = ".", scenes=SCENES, build: str = "defa
 
 def draws_identity(provenance: dict | None) -> str | None:
     """What fixes a scene's draws: its recordings and every stage before the models (their code
-    and parameters). Two runs with the same identity drew the same splits or folds."""
+    and parameters). Two runs with the same identity drew the same splits or folds. A session is
+    named by DVC's hash; revisions before it by a sha256 of their own: such a run pairs with runs
+    of its own kind only (the two hashes of one folder cannot be told equal)."""
     if not provenance:
         return None
     key = {"sessions": provenance.get("sessions"),
