@@ -42,14 +42,15 @@ def _crate(wd, out, *extra):
     return run([sys.executable, "-m", "tactilepipe", "provenance", "--crate", str(out), "--build", "smoke", *extra], wd)
 
 
-def _dvc_add_md5(folder, tmp_path) -> str:
-    """What `dvc add` records for a copy of ``folder`` in a fresh DVC project."""
+def _dvc_add_md5(folder, tmp_path):
+    """What `dvc add` records for a copy of ``folder`` in a fresh DVC project, and its cache."""
     repo = tmp_path / "dvcrepo"
     subprocess.run(["git", "init", "-q", str(repo)], check=True)
     run([sys.executable, "-m", "dvc", "init", "-q"], repo)
     shutil.copytree(folder, repo / "session")
     run([sys.executable, "-m", "dvc", "add", "-q", "session"], repo)
-    return yaml.safe_load((repo / "session.dvc").read_text())["outs"][0]["md5"]
+    md5 = yaml.safe_load((repo / "session.dvc").read_text())["outs"][0]["md5"]
+    return md5, repo / ".dvc" / "cache"
 
 
 def _ids(value) -> list[str]:
@@ -104,8 +105,11 @@ def test_the_crate_loads_back_as_a_workflow_run_of_the_build(build, tmp_path):
     # the input: the session, by the hash `dvc add` records for it (and provenance.json too)
     session = next(o for o in scene_run["object"] if o.get("alternateName") == SESSION)
     assert session.type == "Dataset"
-    md5 = _dvc_add_md5(wd / SESSION, tmp_path)
+    md5, cache = _dvc_add_md5(wd / SESSION, tmp_path)
     assert session["identifier"]["value"] == md5 and md5.endswith(".dir")
+    # and names the object DVC stores it as: the path the crate gives, in the cache `dvc add` filled
+    where = session["identifier"]["description"].split("the object ", 1)[1].split()[0]
+    assert (cache / where).is_file(), where
     assert json.loads((results(wd) / "drift/provenance.json").read_text())["sessions"][SESSION] == md5
     # the parameters: each value the stage was given, as its stamp records it
     stamp = json.loads((results(wd) / "params/drift-report.json").read_text())
