@@ -121,8 +121,9 @@ def test_editing_one_studys_checks_changes_no_other_studys_fingerprint(tmp_path)
         fh.write("# edited again\n")
     again = _fingerprints(src, env)
     changed = {s for s in after if after[s] != again[s]}
-    # diff and sessions check the whole file, as the workflow does: they hold every study's checks
-    assert changed and changed <= set(TOOL_STAGES) | {"diff", "sessions"}, changed
+    # diff, sessions and provenance (which finds the build params.yaml names) check the whole file,
+    # as the workflow does: they hold every study's checks
+    assert changed and changed <= set(TOOL_STAGES) | {"diff", "sessions", "provenance"}, changed
     assert not changed & set(PAPILLARRAY_STAGES)
 
 

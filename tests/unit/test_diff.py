@@ -265,3 +265,23 @@ def test_an_old_revisions_two_way_orderings_are_read_against_the_four_way_ones()
     assert _row(d, "", "paper_orderings.0.power").new == ""
     assert d.verdict == "scores unchanged; 7 other values changed", d.verdict
     assert "| paper_orderings.0.verdict | undecided | equivalent | " in diff.markdown([d], "A", "B", show_same=True)
+
+
+def test_runs_recorded_before_sessions_took_dvcs_hash_are_still_read_and_paired_among_themselves():
+    """provenance.json of older revisions names a session by a sha256 of its own; newer ones by
+    DVC's md5 (a folder's ``.dir`` hash). Two old runs, or two new ones, of the same data pair;
+    an old and a new one cannot show the data is the same, so they are judged by intervals."""
+    old_layout, dvc_layout = "46ff453c25b546eac85e1814446402efcf414fc604879df81ebd283ee07dd5ce", \
+        "30bac1eaacb5412a18f6d134c4fd829c.dir"
+    runs = {}
+    for name, session in (("old", old_layout), ("new", dvc_layout)):
+        before = _tool_run(full=BASE)
+        before["provenance"]["sessions"] = {"raw/tool/s": session}
+        after = copy.deepcopy(before)
+        after["metrics"]["full"] = _model([b + 0.08 + 0.01 * (i % 2) for i, b in enumerate(BASE)])
+        runs[name] = before, after
+    for name in ("old", "new"):
+        row = _row(diff.compare_scene("tool_normal", *runs[name]), "full", "mae")
+        assert (row.verdict, row.how) == ("signal", "paired over 8 draws"), name
+    mixed = _row(diff.compare_scene("tool_normal", runs["old"][0], runs["new"][1]), "full", "mae")
+    assert mixed.how == "intervals"

@@ -9,7 +9,7 @@ import subprocess
 from importlib import metadata
 from pathlib import Path
 
-PACKAGES = ("torch", "numpy", "scikit-learn", "pandas")
+PACKAGES = ("torch", "numpy", "scikit-learn", "pandas", "snakemake", "dvc", "dvc-data")
 # environment variables that choose the code of torch's, oneDNN's, MKL's, NumPy's, OpenCV's and
 # OpenBLAS's kernels (the last three: core/vector_dispatch.py)
 KERNEL_VARIABLES = ("ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA", "DNNL_MAX_CPU_ISA", "MKL_CBWR",

@@ -152,8 +152,8 @@ def read_run(rev: str | None, repo: str = ".", scenes=SCENES, build: str = "defa
 
 
 def draws_identity(provenance: dict | None) -> str | None:
-    """What fixes a scene's draws: its recordings and every stage before the models (their code
-    and parameters). Two runs with the same identity drew the same splits or folds."""
+    """What fixes a scene's draws: its recordings (by DVC's hash; older runs' own sha256 pairs only
+    with its kind) and every stage before the models (code, parameters): same identity, same draws."""
     if not provenance:
         return None
     key = {"sessions": provenance.get("sessions"),

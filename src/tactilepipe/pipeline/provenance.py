@@ -8,25 +8,31 @@ bury the differences that matter; `dvc metrics diff --targets <scene>/runtime.js
 
 from __future__ import annotations
 
-import hashlib
+import os
 from pathlib import Path
 
 from tactilepipe.core.atomic import write_json
 from tactilepipe.core.environment import environment, git_state
-from tactilepipe.core.hashing import file_sha256
+from tactilepipe.core.errors import InputError
 from tactilepipe.pipeline import codedeps
 
 
-def session_hash(path: str | Path) -> str:
-    """sha256 over the relative names and contents of every file of a recording session (a folder,
-    or a single file), independent of file times and of the order the files were written in."""
-    path = Path(path)
-    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
-    h = hashlib.sha256()
-    for f in files:
-        rel = f.relative_to(path).as_posix() if path.is_dir() else f.name
-        h.update(f"{rel}\0{file_sha256(f)}\0".encode())
-    return h.hexdigest()
+def dvc_hash(path: str | Path) -> str:
+    """DVC's own hash of a recording session, through DVC's library (dvc_data), so that the number
+    names an object in a DVC cache or remote: a file's md5, a folder's ``<md5>.dir`` (the md5 of
+    its manifest of relative names and file md5s), as ``dvc add`` records them. .dvcignore is not
+    read (it is no input of the stage that writes provenance.json): a pattern that excludes files
+    inside a session would make the two differ."""
+    from dvc_data.hashfile.build import build
+    from dvc_data.hashfile.db import HashFileDB
+    from dvc_objects.fs import MemoryFileSystem
+    from dvc_objects.fs.local import LocalFileSystem
+    path = os.path.abspath(path)
+    if not os.path.exists(path):
+        raise InputError(path, "recording session not found: its hash cannot be recorded")
+    # dry_run: hashes only; the cache it names is in memory, and nothing is copied there
+    _, _, obj = build(HashFileDB(MemoryFileSystem(), "/unused"), path, LocalFileSystem(), "md5", dry_run=True)
+    return obj.hash_info.value
 
 
 def scene_provenance(given: dict[str, dict], sessions: list[str | Path]) -> dict:
@@ -34,7 +40,7 @@ def scene_provenance(given: dict[str, dict], sessions: list[str | Path]) -> dict
     given}) from ``sessions``."""
     return {
         "stages": {s: {"code_sha256": codedeps.stage_fingerprint(s), "params": params} for s, params in given.items()},
-        "sessions": {str(s): session_hash(s) for s in sessions},
+        "sessions": {str(s): dvc_hash(s) for s in sessions},
         "environment": environment(),
         "git": git_state(),
     }
