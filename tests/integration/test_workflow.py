@@ -283,6 +283,31 @@ def test_a_tool_model_trains_and_predicts_through_snakemake(smoke_build: Path):
     assert lines[0] == "pair,left_frame,right_frame,t_s,prediction_n,latency_ms" and len(lines) == 7 and "pairs/s" in lines[-1]
 
 
+def test_long_jobs_log_their_progress_under_snakemake(smoke_build: Path):
+    """Each job's stderr is its log file (no terminal): a training job writes one line per epoch of
+    its history, the simulators a count of their recordings, ingest what it read."""
+    logs, models = results(smoke_build) / "logs", results(smoke_build) / "tool_normal/models"
+    for run_dir in (models / "full", models / "no_ref_r1"):
+        epochs = [line.split(",")[0] for line in (run_dir / "history.csv").read_text().splitlines()[1:]]
+        log = (logs / f"tool_normal/train_{run_dir.name}.log").read_text()
+        lines = [line for line in log.splitlines() if line.startswith("epoch ")]
+        assert [re.match(r"epoch (\d+)/\d+: train loss .+, val loss .+, val MAE .+ N, .+ \(elapsed .+ s\)$", line)[1]
+                for line in lines] == epochs and epochs, log
+    for study in ("volume", "drift", "tool"):
+        log = (logs / f"{study}_simulate/sim-smoke.log").read_text()
+        assert re.search(rf"^simulate {study}: (\d+)/\1 done \(", log, flags=re.M), log
+    ingest = next((logs / "ingest").rglob("*.log")).read_text()
+    assert json.loads(ingest.splitlines()[-1])["messages"] > 0
+
+
+def test_every_figure_of_the_build_has_its_svg_twin(smoke_build: Path):
+    pngs = sorted(p for p in results(smoke_build).rglob("*.png") if "/models/" not in str(p))
+    assert len(pngs) > 20
+    missing = [str(p) for p in pngs if not p.with_suffix(".svg").is_file()]
+    assert missing == []
+    assert all(p.with_suffix(".svg").read_text().startswith("<?xml") for p in pngs)
+
+
 def test_names_with_spaces_go_through_the_rules(tmp_path: Path):
     """A session, bag and trial folder named with spaces (as rigs and people name them) are
     ingested: every path reaches the shell quoted, and the logs land where the rules say."""

@@ -14,7 +14,9 @@ rule volume_regimes:
         grip=f"{REGIMES}/fz_vs_volume.csv",
         grip_markdown=f"{REGIMES}/fz_vs_volume.md",
         bars=f"{REGIMES}/figures/r2_by_regime.png",
+        bars_svg=f"{REGIMES}/figures/r2_by_regime.svg",
         grip_figure=f"{REGIMES}/figures/fz_vs_volume.png",
+        grip_figure_svg=f"{REGIMES}/figures/fz_vs_volume.svg",
         metrics=f"{REGIMES}/metrics.json",
         qc=[f"{REGIMES}/qc_{name}.csv" for name in P["volume_regimes"]["regimes"]],
     params:

@@ -51,13 +51,14 @@ rule tool_clock_figure:
         code=stage_code("tool-clock-figure"),
         params=param_stamp("tool-clock-figure"),
     output:
-        f"{RESULTS}/tool/qc/{{session}}_clock_sync.png",
+        png=f"{RESULTS}/tool/qc/{{session}}_clock_sync.png",
+        svg=f"{RESULTS}/tool/qc/{{session}}_clock_sync.svg",
     resources:
         **rule_resources("tool_clock_figure"),
     log:
         f"{LOGS}/tool_clock_figure/{{session}}.log",
     shell:
-        "{CLI} tool-clock-figure --shards {input.shards:q} --out {output:q} > {log:q} 2>&1"
+        "{CLI} tool-clock-figure --shards {input.shards:q} --out {output.png:q} > {log:q} 2>&1"
 
 
 rule tool_dataset:
@@ -120,7 +121,7 @@ rule tool_data_report:
         params=param_stamp("tool-data-report"),
     output:
         qc=reported([f"{RESULTS}/{{scene}}/qc.md"], "{scene}")[0],
-        figures=reported(expand(RESULTS + "/{{scene}}/figures/{fig}.png", fig=scenes.TOOL_DATA_FIGURES), "{scene}"),
+        figures=reported(scenes.figure_files(RESULTS + "/{scene}/figures", scenes.TOOL_DATA_FIGURES, "tool"), "{scene}"),
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     resources:
@@ -184,7 +185,7 @@ rule tool_model_report:
         provenance=f"{RESULTS}/{{scene}}/provenance.json",
         runtime=f"{RESULTS}/{{scene}}/runtime.json",
         tables=reported(expand(RESULTS + "/{{scene}}/tables/{t}.md", t=scenes.tool_model_tables(P)), "{scene}"),
-        figures=reported(expand(RESULTS + "/{{scene}}/figures/{fig}.png", fig=scenes.tool_model_figures(P)), "{scene}"),
+        figures=reported(scenes.figure_files(RESULTS + "/{scene}/figures", scenes.tool_model_figures(P), "tool"), "{scene}"),
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     params:

@@ -47,6 +47,18 @@ STAGES = [  # (name, Snakemake targets); "{scale}" is written as DVC's ${scale},
 # or a dry run's scratch copy of a changed one (changed-params/...)
 STAMP = re.compile(r"^(results/[^/]+/params|/.*/changed-params)/([^/]+/)?[^/]+\.json$")
 COMMAND = "snakemake --cores 2 --workflow-profile workflow/profiles/default"
+# How DVC draws each figure's data (<figure>.csv beside it, pipeline/scenes.py PLOT_DATA): columns
+# as the figure modules write them, and one of DVC's own vega-lite templates
+DATA_PLOTS = {
+    "mu_r2_curve.csv": {"x": "mu", "y": ["r2_train_mean", "r2_train_min", "r2_train_max"], "template": "linear",
+                        "title": "volume baseline: R2 of the training folds against the friction coefficient mu"},
+    "drift_curves.csv": {"x": "t_min", "y": ["unloaded_drift_n", "loaded_drift_n"], "template": "linear",
+                         "title": "PapillArray drift of global Fz since the bias request (N) against minutes"},
+    "error_vs_runtime.csv": {"x": "train_s", "y": "mae", "template": "scatter",
+                             "title": "{scene}: test MAE (N) against training wall time (s), every run"},
+    "intervals.csv": {"x": "mae_mean", "y": "model", "template": "bar_horizontal",
+                      "title": "{scene}: mean test MAE (N) over the repeated splits, per variant and baseline"},
+}
 METRICS = {"metrics.json", "provenance.json"}
 UNCACHED_OUTS = {"runtime.json"}
 ALWAYS_RULE_FILES = ["Snakefile", "workflow/rules/common.smk"]
@@ -215,9 +227,11 @@ def generate(params: dict) -> str:
         if metrics:
             stage["metrics"] = metrics
         doc["stages"][name] = stage
-        # the figures of a scene (a session's QC figures are outs, not plots: their names change with sessions)
-        plots += sorted(dvc_path(f) for f, s in output_stage.items()
-                        if s == name and f.endswith(".png") and "/figures/" in f)
+        # the figures of a scene (a session's QC figures are outs, not plots: their names change with
+        # sessions) as images, then the data of those that write it, which `dvc plots diff` overlays
+        figures = [f for f, s in output_stage.items() if s == name and "/figures/" in f]
+        plots += sorted(dvc_path(f) for f in figures if f.endswith(".png"))
+        plots += [{dvc_path(f): data_plot(f)} for f in sorted(figures) if f.endswith(".csv")]
     doc["plots"] = plots
     out = io.StringIO()
     out.write(HEADER)
@@ -282,6 +296,15 @@ def study000(params: dict) -> str:
     out.write(STUDY000_HEADER)
     yaml.safe_dump({"stages": stages}, out, sort_keys=False, width=110)
     return out.getvalue()
+
+
+def data_plot(path: str) -> dict:
+    """The plot definition of a figure's data file (DATA_PLOTS), titled with its scene."""
+    if Path(path).name not in DATA_PLOTS:
+        raise SystemExit(f"{path}: a figure's data with no plot definition: add it to DATA_PLOTS")
+    spec = dict(DATA_PLOTS[Path(path).name])
+    spec["title"] = spec["title"].format(scene=Path(path).parent.parent.name)
+    return spec
 
 
 def _outermost(keys: set[str]) -> list[str]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 
 from tactilepipe.core.errors import ConfigError
 
@@ -40,9 +41,23 @@ def stage_params(args, *keys: str, checks=()) -> dict:
 
 
 def _progress(iterable, desc: str, total: int | None = None):
-    from tqdm import tqdm
-    return tqdm(iterable, desc=desc, total=total, unit="bag", file=sys.stderr,
-                disable=None, mininterval=1.0)
+    """A bar on a terminal; elsewhere (a job's log under Snakemake) a count line every tenth of
+    the jobs and at the end, so a long stage still says how far it is."""
+    total = len(iterable) if total is None else total
+    if getattr(sys.stderr, "isatty", lambda: False)():
+        from tqdm import tqdm
+        return tqdm(iterable, desc=desc, total=total, unit="job", file=sys.stderr, mininterval=1.0)
+    return _counted(iterable, desc, total)
+
+
+def _counted(iterable, desc: str, total: int):
+    start, every = time.perf_counter(), max(1, total // 10)
+    done = 0
+    for item in iterable:
+        yield item                      # the caller runs (or has run) the job before the next item
+        done += 1
+        if done % every == 0 or done == total:
+            print(f"{desc}: {done}/{total} done ({time.perf_counter() - start:.1f} s)", file=sys.stderr, flush=True)
 
 
 def _call(job):

@@ -112,7 +112,8 @@ def cmd_tool_split(args, p) -> None:
                arg("--out-dir", required=True),
                arg("--run", help="by hand, without --stamp: the run to train (a name as in tool/runs.py, e.g. full, "
                                  "no_gam_r1, full_d18_s8), defined by params.yaml as the workflow defines it"),
-               arg("--quiet", action="store_true", help="no progress bar")))
+               arg("--quiet", action="store_true", help="no progress bar (one line per epoch is still written to "
+                                                           "stderr; the bar is off anyway when stderr is no terminal)")))
 def cmd_tool_train(args, p) -> None:
     run = _train_run(args)
     from tactilepipe.tool.model.kernels import use_kernels

@@ -117,9 +117,29 @@ def write_parquet(target: str | Path, frame) -> None:
         frame.to_parquet(tmp, index=False)
 
 
+# the vector twin of every PNG figure: for papers (scales without blur) and for diffs (text)
+VECTOR_SUFFIX = ".svg"
+# matplotlib's SVG writer names clip paths and glyphs with ids hashed from a random salt and stamps
+# a date: a fixed salt and no date make two writes of one figure the same bytes
+SVG_RC = {"svg.hashsalt": "tactilepipe", "svg.fonttype": "path"}
+
+
+def vector_twin(png: str | Path) -> Path:
+    """Where the vector copy of a PNG figure is written (beside it, same stem)."""
+    return Path(png).with_suffix(VECTOR_SUFFIX)
+
+
 def save_figure(target: str | Path, fig, dpi: int = 150) -> None:
+    """Write ``fig`` to ``target``; a PNG also gets its SVG twin (``vector_twin``), byte-identical
+    from one run to the next."""
+    import matplotlib
+
+    fmt = Path(target).suffix.lstrip(".") or "png"
     with atomic_path(target) as tmp:
-        fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format=Path(target).suffix.lstrip(".") or "png")
+        fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format=fmt)
+    if fmt == "png":
+        with atomic_path(vector_twin(target)) as tmp, matplotlib.rc_context(SVG_RC):
+            fig.savefig(tmp, bbox_inches="tight", format="svg", metadata={"Date": None})
 
 
 def open_memmap(path: str | Path, shape: tuple, dtype):

@@ -1,6 +1,8 @@
-"""Shared figure style: paper-sized, readable fonts, no display needed."""
+"""Shared figure style: paper-sized, readable fonts, no display needed; a figure's data beside it."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import matplotlib
 
@@ -21,3 +23,15 @@ def figure(width: float = 4.5, height: float = 3.2, **kwargs):
 
 def close(fig) -> None:
     plt.close(fig)
+
+
+def figure_data_path(png: str | Path) -> Path:
+    """The table of the numbers a figure draws, beside it (<figure>.csv): a DVC data plot."""
+    return Path(png).with_suffix(".csv")
+
+
+def save_figure_data(png: str | Path, frame) -> None:
+    """Write a figure's numbers (a DataFrame, one row per point) as CSV beside its PNG, so DVC can
+    draw two revisions of them on one axis (`dvc plots diff`, dvc.yaml `plots:`)."""
+    from tactilepipe.core.atomic import write_text
+    write_text(figure_data_path(png), frame.to_csv(index=False))

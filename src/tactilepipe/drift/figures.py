@@ -67,9 +67,19 @@ def _legend_rank(label: str) -> int:
     return 2 * len(RUN_STYLE)
 
 
+def drift_curves_data(series: pd.DataFrame) -> pd.DataFrame:
+    """The figure's points, one row per recording time: <run>_drift_n for every run (both runs of
+    RUN_STYLE always, empty where a run has no recording at that time)."""
+    runs = list(RUN_STYLE) + [r for r in series["run"].unique() if r not in RUN_STYLE]
+    wide = series.pivot_table(index="t_min", columns="run", values="drift_n", aggfunc="mean").reindex(columns=runs)
+    wide.columns = [f"{run}_drift_n" for run in wide.columns]
+    return wide.reset_index()
+
+
 def write_drift_figure(target: str | Path, series: pd.DataFrame, fits, tolerance_n: float) -> None:
     fig = plot_drift_curves(series, fits, tolerance_n)
     try:
         save_figure(target, fig)
     finally:
         plotting.close(fig)
+    plotting.save_figure_data(target, drift_curves_data(series))

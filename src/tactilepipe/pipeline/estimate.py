@@ -14,10 +14,15 @@ Two numbers per rule:
   (results/<build>/<scene>/data/samples.parquet), else from the simulator's session plan; the splits take
   `tool_split.fractions`. FLOPs become hours through `resources.cost_model`: sustained GFLOP/s per
   CPU core (measured here) and TFLOP/s of one GPU with mixed precision (assumed).
+* measured, where the last build of the same build folder left run times (its scenes'
+  runtime.json): a training job takes its run's train_s, a volume MLP or baseline job its method's
+  fit_s per fold x folds. The sum is the wall time of those jobs run one after another, on that
+  machine; jobs without a record (a new run, a first build) are counted apart, not guessed.
 """
 
 from __future__ import annotations
 
+import json
 from collections import defaultdict
 from functools import lru_cache
 from pathlib import Path
@@ -97,6 +102,54 @@ def training_flops(p: dict, pairs: int, variant: str, depth: int, image_size: in
     return {"forward_gflop": fwd / 1e9, "epochs": epochs, "train_pairs": int(n_train), "flop": total}
 
 
+def last_runtimes(p: dict, scene: str, root: Path = Path(".")) -> dict[str, dict]:
+    """A scene's runtime.json from the last build ({} when there is none or it cannot be read: an
+    estimate does without it)."""
+    path = root / results_root(p["build"]) / scene / "runtime.json"
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def measured_seconds(p: dict, job: "Job", root: Path = Path(".")) -> float | None:
+    """What the job took in the last build (see the module docstring), or None without a record."""
+    rule, w = job[0], job[1]
+    if rule == "tool_train":
+        value = last_runtimes(p, w["scene"], root).get(w["run"], {}).get("train_s")
+    elif rule in ("volume_train", "volume_baseline"):
+        method = w["modality"] if rule == "volume_train" else "baseline"
+        fit_s = last_runtimes(p, "volume", root).get(method, {}).get("fit_s")
+        value = None if fit_s is None else fit_s * p["folds"]["n_folds"]
+    else:
+        return None
+    return float(value) if isinstance(value, (int, float)) else None
+
+
+def measured_report(p: dict, jobs: list["Job"], root: Path = Path(".")) -> list[str]:
+    """Lines: the wall time of the jobs the last build has run times for, per rule."""
+    by_rule: dict[str, list[float | None]] = defaultdict(list)
+    for job in jobs:
+        if job[0] in ("tool_train", "volume_train", "volume_baseline"):
+            by_rule[job[0]].append(measured_seconds(p, job, root))
+    known = {r: [s for s in v if s is not None] for r, v in by_rule.items()}
+    if not any(known.values()):
+        return ["", "Measured wall time: no run times of a last build "
+                f"({results_root(p['build'])}/<scene>/runtime.json) for these jobs."]
+    lines = ["", f"Measured wall time (the last build's {results_root(p['build'])}/<scene>/runtime.json):",
+             f"{'rule':<20} {'jobs':>5} {'measured':>8} {'wall':>10}  {'per run':>10}"]
+    for rule, values in sorted(by_rule.items()):
+        got = known[rule]
+        mean = _fmt_h(sum(got) / len(got) / 3600) if got else "-"
+        lines.append(f"{rule:<20} {len(values):>5} {len(got):>8} {_fmt_h(sum(got) / 3600):>10}  {mean:>10}")
+    total = sum(sum(v) for v in known.values())
+    missing = sum(len(v) - len(known[r]) for r, v in by_rule.items())
+    lines.append(f"{'total':<20} {sum(map(len, by_rule.values())):>5} {sum(map(len, known.values())):>8} "
+                 f"{_fmt_h(total / 3600):>10}  (jobs one after another; {missing} without a record not counted)")
+    return lines
+
+
 def _fmt_h(hours: float) -> str:
     if hours < 0.1:
         return f"{hours * 60:.1f} min"
@@ -166,4 +219,5 @@ def estimate_report(p: dict, jobs: Iterable[Job], run_spec: Callable | None = No
         if over_limit:
             lines.append("warning: modelled time above the job's time limit (raise resources.rules.tool_train."
                          "runtime or lower max_epochs): " + ", ".join(over_limit))
+    lines += measured_report(p, jobs, root)
     return "\n".join(lines)

@@ -28,12 +28,24 @@ SCENES: dict[str, Scene] = {
     **{name: Scene("tool", _TOOL_STAGES) for name in TOOL_SCENES},
 }
 
+# The figures whose numbers are also written as a table beside them (<figure>.csv), declared as
+# DVC data plots (dvc.yaml `plots:`), so `dvc plots diff` draws two revisions on one axis.
+PLOT_DATA = {"volume": ["mu_r2_curve"], "drift": ["drift_curves"], "tool": ["error_vs_runtime", "intervals"]}
+
+
+def figure_files(folder: str, names, study: str) -> list[str]:
+    """Every file a figure is written as: PNG, its SVG twin (core/atomic.py save_figure) and, for
+    the figures of PLOT_DATA, its data."""
+    return [f"{folder}/{n}{ext}" for n in names
+            for ext in (".png", ".svg") + ((".csv",) if n in PLOT_DATA[study] else ())]
+
+
 # what each scene ends in, under results/<build>/<scene>/ (the report stages write these names)
 VOLUME_OUTPUTS = ["metrics.json", "provenance.json", "runtime.json"] + \
     [f"tables/{t}.md" for t in ("table1_r2", "table2_volumes", "unseen_volumes", "runtime", "grid_search")] + \
-    [f"figures/{f}.png" for f in ("r2_by_modality", "mu_r2_curve", "true_vs_estimated", "error_vs_runtime",
-                                  "pillar_map")]
-DRIFT_OUTPUTS = ["metrics.json", "provenance.json", "fits.md", "figures/drift_curves.png"]
+    figure_files("figures", ("r2_by_modality", "mu_r2_curve", "true_vs_estimated", "error_vs_runtime",
+                             "pillar_map"), "volume")
+DRIFT_OUTPUTS = ["metrics.json", "provenance.json", "fits.md"] + figure_files("figures", ["drift_curves"], "drift")
 TOOL_DATA_FIGURES = ["force_histogram", "force_profiles", "rmse_vs_force", "pressing_strip"]
 
 
@@ -71,8 +83,9 @@ def tool_split_names(name: str, p: dict, sheet: SessionSheet) -> list[str]:
 
 def tool_data_targets(name: str, results: str, p: dict, sheet: SessionSheet) -> list[str]:
     """QC report, clock figures, data figures and every split of a tool scene (no model)."""
-    return [f"{results}/{name}/qc.md"] + [f"{results}/tool/qc/{s}_clock_sync.png" for s in sheet.sessions("tool")] + \
-        [f"{results}/{name}/figures/{f}.png" for f in TOOL_DATA_FIGURES] + \
+    return [f"{results}/{name}/qc.md"] + \
+        figure_files(f"{results}/tool/qc", [f"{s}_clock_sync" for s in sheet.sessions("tool")], "tool") + \
+        figure_files(f"{results}/{name}/figures", TOOL_DATA_FIGURES, "tool") + \
         [f"{results}/{name}/splits/{x}.json" for x in tool_split_names(name, p, sheet)]
 
 
@@ -80,7 +93,7 @@ def tool_model_targets(name: str, results: str, p: dict) -> list[str]:
     """Metrics, tables and figures of every trained model run of a tool scene."""
     return [f"{results}/{name}/{f}.json" for f in ("metrics", "provenance", "runtime")] + \
         [f"{results}/{name}/tables/{t}.md" for t in tool_model_tables(p)] + \
-        [f"{results}/{name}/figures/{f}.png" for f in tool_model_figures(p)]
+        figure_files(f"{results}/{name}/figures", tool_model_figures(p), "tool")
 
 
 def scene_targets(names, results: str, p: dict, sheet: SessionSheet, data_only: bool = False) -> list[str]:
@@ -139,7 +152,9 @@ def report_items(files, scene_name: str, p: dict) -> list[tuple[str, str | None,
     out = []
     for f in files:
         path = Path(f)
-        if path.name in ("provenance.json", "runtime.json"):
+        # a figure's vector twin and data: files beside the report's PNG item, not items of their own
+        if path.name in ("provenance.json", "runtime.json") or (path.parent.name == "figures"
+                                                                 and path.suffix in (".svg", ".csv")):
             out.append((f, None, None, None))
             continue
         if path.suffix == ".md" and path.name != "qc.md":

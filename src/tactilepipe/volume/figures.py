@@ -11,7 +11,7 @@ from matplotlib.patches import Circle
 
 from tactilepipe.core.atomic import save_figure
 from tactilepipe.papillarray.messages import PILLAR_ROWCOL
-from tactilepipe.core.plotting import close, figure
+from tactilepipe.core.plotting import close, figure, save_figure_data
 
 LABELS = {"fx_fy_fz": "{Fx,Fy,Fz}", "fy_fz": "{Fy,Fz}", "fy": "Fy", "fz": "Fz", "baseline": "est_vol\n(baseline)"}
 
@@ -60,6 +60,10 @@ def mu_curves(curve: pd.DataFrame, optima: pd.DataFrame, mu_star: float, out: Pa
     ax.legend(ncols=2)
     save_figure(out, fig)
     close(fig)
+    # one row per mu: the folds' mean, lowest and highest R² (one line each in `dvc plots diff`)
+    r2 = curve.groupby("mu")["r2_train"]
+    save_figure_data(out, pd.DataFrame({"mu": r2.mean().index, "r2_train_mean": r2.mean().to_numpy(),
+                                        "r2_train_min": r2.min().to_numpy(), "r2_train_max": r2.max().to_numpy()}))
 
 
 def true_vs_estimated(per_lift: pd.DataFrame, method: str, out: Path) -> None:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tactilepipe.core.atomic import atomic_path
+from tactilepipe.core.atomic import save_figure
 from tactilepipe.tool.data.ingest import read_shard_info
 
 
@@ -37,7 +37,6 @@ def clock_figure(shards: list[Path], out_png: Path, title: str = "") -> int:
     ax.set_title(title or f"clock alignment, {n} trials (dot: lag chosen; dashed: host clock kept)")
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    with atomic_path(out_png) as tmp:
-        fig.savefig(tmp, format="png", dpi=120)
+    save_figure(out_png, fig, dpi=120)
     plt.close(fig)
     return n

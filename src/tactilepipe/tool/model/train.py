@@ -242,8 +242,9 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
             t0 = time.perf_counter()
             model.train()
             total, count = 0.0, 0
+            # the bar only on a terminal (disable=None): in a log file it would be carriage returns
             bar = tqdm(total=n_batches, desc=f"epoch {epoch}/{cfg.max_epochs}", unit="batch",
-                       file=sys.stderr, disable=not progress, leave=False)
+                       file=sys.stderr, disable=None if progress else True, leave=False)
             batches = data.batches(train_idx, cfg.batch_size, shuffle=True, seed=_epoch_seed(cfg.seed, epoch))
             for b, (x, y, part) in enumerate(batches, start=1):
                 if b > n_batches:
@@ -294,13 +295,19 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
                    "scaler": scaler.state_dict(), "rng": rng, "config": asdict(cfg),
                    "meta": {**meta, "epoch": epoch, "val_loss": val_loss, "val_mae_n": val_mae}, **state}, last_path)
             write_history(out_dir / "history.csv", state["history"])
-            if progress:
-                tqdm.write(f"epoch {epoch}: train {train_loss:.4f}  val {val_loss:.4f}  val MAE {val_mae:.3f} N  "
-                           f"({epoch_s:.1f} s)", file=sys.stderr)
+            # one line per epoch whatever stderr is (a job's log under Snakemake): what a long run is doing
+            tqdm.write(epoch_line(state["history"][-1], cfg.max_epochs), file=sys.stderr)
+            sys.stderr.flush()
         return {**_summary(state, meta, device, resumed_from), "kernels": kernels}
     finally:
         torch.set_num_threads(saved[0])
         _use_deterministic_algorithms(saved[1], warn_only=saved[2])
+
+
+def epoch_line(row: dict, max_epochs: int) -> str:
+    """The log line of one epoch (a row of history.csv): losses, validation MAE, time so far."""
+    return (f"epoch {row['epoch']}/{max_epochs}: train loss {row['train_loss']:.4f}, val loss {row['val_loss']:.4f}, "
+            f"val MAE {row['val_mae_n']:.3f} N, {row['epoch_s']:.1f} s (elapsed {row['wall_s']:.1f} s)")
 
 
 def _use_deterministic_algorithms(mode: bool, warn_only: bool) -> None:

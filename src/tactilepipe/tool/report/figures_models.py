@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from tactilepipe.core.atomic import save_figure
-from tactilepipe.core.plotting import close, figure
+from tactilepipe.core.plotting import close, figure, save_figure_data
 from tactilepipe.tool.model.variants import Variant
 
 # ``looks``: the variants as params.yaml tool_variants defines them ({name: Variant}), whose label and
@@ -173,6 +173,7 @@ def pareto(runs: pd.DataFrame, out: Path, *, looks: dict[str, Variant]) -> None:
     fig.suptitle("Error against run time: every run")
     save_figure(out, fig)
     close(fig)
+    save_figure_data(out, runs)
 
 
 BASELINE_LABELS = {"mean_predictor": "mean predictor", "tactile_rmse_linear": "tactile RMSE (own reference)",
@@ -202,6 +203,9 @@ def interval_bars(scores: dict[str, dict[str, list[float]]], summary: dict[str, 
     fig.suptitle(f"Over {n} repeated trial splits: mean (◆), 95 % interval (bar), each split (•)")
     save_figure(out, fig)
     close(fig)
+    save_figure_data(out, pd.DataFrame([{"model": name, "n": summary[name]["mae"]["n"],
+                                         **{f"{m}_{k}": summary[name][m][k] for m in ("mae", "r2")
+                                            for k in ("mean", "low", "high")}} for name in names]))
 
 
 def loto_bars(loto: dict, label: str, out: Path, *, looks: dict[str, Variant]) -> None:
