@@ -157,7 +157,7 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
                             "slope": e["slope"], "intercept (N)": e["intercept"], "train (s)": e.get("train_s", np.nan),
                             "latency (ms)": e.get("latency_ms", np.nan), "parameters": e.get("parameters", 0)})
     write_table(pd.DataFrame(split0_rows), tables / "variants",
-                f"{scene}: test set of the '{split_names[0]}' split ({len(splits[0]['test'])} frame pairs)", "{:.4f}")
+                f"{scene}: test set of the first split, '{split_names[0]}' ({len(splits[0]['test'])} frame pairs)", "{:.4f}")
     write_table(_interval_table(summary), tables / "intervals",
                 f"{scene}: over {k_repeats} repeats of the '{split_names[0]}' split (own trials and model seed each), "
                 "mean ± std and 95 % interval (Nadeau-Bengio corrected)", "{:.3f}")
@@ -173,9 +173,11 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
                    ignore_index=True)
     pw = pd.concat([pd.DataFrame(evals[plan.repeats[v][0]]["per_window"]).assign(model=v) for v in variants],
                    ignore_index=True)
-    write_table(pt[["model", "tool", "mae", "std_abs_error", "n"]], tables / "per_tool", "|error| per tool (N)", "{:.3f}")
+    on_first = f"test set of the first split, '{split_names[0]}'"
+    write_table(pt[["model", "tool", "mae", "std_abs_error", "n"]], tables / "per_tool",
+                f"|error| per tool (N), {on_first}", "{:.3f}")
     write_table(pw[["model", "window", "mae", "std_abs_error", "n"]], tables / "per_window",
-                "|error| per force window (N), with frame counts", "{:.3f}")
+                f"|error| per force window (N), with frame counts, {on_first}", "{:.3f}")
     every = pd.DataFrame([{"run": r, "variant": evals[r]["variant"], "split": evals[r]["split"],
                            "depth": evals[r]["depth"], "image_size": evals[r]["image_size"], "mae": evals[r]["mae"],
                            "r2": evals[r]["r2"], "train_s": evals[r]["train_s"], "latency_ms": evals[r]["latency_ms"],
@@ -188,14 +190,17 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
     write_json(scene_dir / "runtime.json", {r: {"train_s": float(evals[r]["train_s"]),
                                                 "latency_ms": float(evals[r]["latency_ms"])} for r in runs})
 
-    # --- figures: the paper's Figs. 5-8 and 9 (normal) / 10 (shear), on repeat 0 ------------------
+    # --- figures: the paper's Figs. 5-8 and 9 (normal) / 10 (shear), on the first split -------------
     p0 = {v: preds[plan.repeats[v][0]] for v in variants}
     e0 = {v: evals[plan.repeats[v][0]] for v in variants}
-    fm.sorted_predictions(p0["full"], label, figs / "sorted_predictions.png")
-    fm.over_time(p0, label, figs / "over_time.png", looks=looks)
-    fm.per_tool_bars({v: pd.DataFrame(e0[v]["per_tool"]) for v in variants}, figs / "per_tool.png", looks=looks)
-    fm.window_heatmap({v: pd.DataFrame(e0[v]["per_window"]) for v in variants}, figs / "window_heatmap.png", looks=looks)
-    fm.regression_grid(p0, e0, label, figs / "regression.png", looks=looks)
+    first = split_names[0]
+    fm.sorted_predictions(p0["full"], label, figs / "sorted_predictions.png", split=first)
+    fm.over_time(p0, label, figs / "over_time.png", looks=looks, split=first)
+    fm.per_tool_bars({v: pd.DataFrame(e0[v]["per_tool"]) for v in variants}, figs / "per_tool.png", looks=looks,
+                     split=first)
+    fm.window_heatmap({v: pd.DataFrame(e0[v]["per_window"]) for v in variants}, figs / "window_heatmap.png",
+                      looks=looks, split=first)
+    fm.regression_grid(p0, e0, label, figs / "regression.png", looks=looks, split=first)
     fm.pareto(every, figs / "error_vs_runtime.png", looks=looks)
     fm.interval_bars(scores, summary, label, figs / "intervals.png", looks=looks)
     if plan.loto:
