@@ -78,7 +78,7 @@ def tool_data_targets(name: str, results: str, p: dict, sheet: SessionSheet) -> 
 
 def tool_model_targets(name: str, results: str, p: dict) -> list[str]:
     """Metrics, tables and figures of every trained model run of a tool scene."""
-    return [f"{results}/{name}/{f}.json" for f in ("metrics", "provenance", "runtime")] + \
+    return [f"{results}/{name}/{f}.json" for f in ("metrics", "scores", "provenance", "runtime")] + \
         [f"{results}/{name}/tables/{t}.md" for t in tool_model_tables(p)] + \
         [f"{results}/{name}/figures/{f}.png" for f in tool_model_figures(p)]
 
@@ -103,14 +103,14 @@ def report_outputs(name: str, results: str) -> list[str]:
 
 def report_items(files, scene_name: str, p: dict) -> list[tuple[str, str | None, str | None]]:
     """(file, caption, subcategory) of each output, for `snakemake --report`: caption None for an
-    output that is not a report item (provenance, run times; a Markdown table, whose HTML twin is
+    output that is not a report item (provenance, run times, a tool scene's scores.json; a Markdown table, whose HTML twin is
     the item: the report shows HTML as a page, Markdown only as a download). ``scene_name`` may be
     the rules' "{scene}" wildcard: tool scenes share the tool captions (workflow/report/tool/)."""
     group = scene_name if scene_name in ("volume", "drift") else "tool"
     out = []
     for f in files:
         path = Path(f)
-        if path.name in ("provenance.json", "runtime.json"):
+        if path.name in ("provenance.json", "runtime.json", "scores.json"):
             out.append((f, None, None))
             continue
         if path.suffix == ".md" and path.name != "qc.md":

@@ -1,10 +1,15 @@
-"""Tool scene results: metrics.json, tables and the model figures, from the trained runs.
+"""Tool scene results: scores.json, metrics.json, tables and the model figures, from the trained runs.
 
 Runs live in results/<build>/<scene>/models/<run>/ (eval.json, predictions.parquet); their names are
-explained in ``tool/runs.py``. Repeat 0 of the default split is the one the per-run figures and
-the ``variants`` table draw; every score is also reported over all repeats (mean, std, 95 %
-interval), with paired differences between variants and each variant's verdict against the
-baselines that have its information (its params.yaml ``tool_variants`` entry's ``baseline``).
+explained in ``tool/runs.py``. A model's score (``mae``, ``rmse``, ``r2``) is its mean over the
+repeated splits, with the interval beside it (``over_splits``), paired differences between variants
+and each variant's verdict against the baselines that have its information (its params.yaml
+``tool_variants`` entry's ``baseline``). One split, the first (repeat 0 of the default split), is
+what the per-run figures and the ``variants`` table draw: its values sit under ``first_split``,
+named so, and every figure drawn from it names it.
+
+scores.json holds all of it; metrics.json (DVC's metrics: `dvc metrics show`, `dvc exp show`) only
+the headline, each variant's mean scores, so that a comparison of runs fits a terminal.
 """
 
 from __future__ import annotations
@@ -29,7 +34,8 @@ from tactilepipe.tool.runs import run_spec, sweep_run_name
 from tactilepipe.tool.scenes import scene_label
 from tactilepipe.tool.data.splits import parse_split_name
 
-SPLIT_0_KEYS = ("mae", "rmse", "r2", "slope", "intercept", "parameters", "epochs", "depth", "image_size")
+FIRST_SPLIT_KEYS = ("mae", "rmse", "r2", "slope", "intercept")          # scores of one split
+RUN_KEYS = ("parameters", "epochs", "depth", "image_size")                 # the same for every split
 
 
 @dataclass
@@ -113,19 +119,20 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
     scores |= {b: {m: [draw[b][m] for draw in base] for m in verdicts.METRICS} for b in BASELINES}
     summary = {name: verdicts.over_draws(s, ratio) for name, s in scores.items()}
 
-    # --- metrics.json ---------------------------------------------------------------------------
+    # --- scores.json, metrics.json ----------------------------------------------------------------
     metrics = {}
     for v in variants:
         e0 = evals[plan.repeats[v][0]]
         own = [looks[v].baseline, "mean_predictor"]
         against = {b: verdicts.versus(scores[v], scores[b], ratio) for b in own}
-        metrics[v] = {k: e0[k] for k in SPLIT_0_KEYS} | {"per_split": scores[v], "over_splits": summary[v]}
+        metrics[v] = _mean_scores(summary[v]) | {k: e0[k] for k in RUN_KEYS} | {
+            "first_split": _first_split(split_names[0], e0), "per_split": scores[v], "over_splits": summary[v]}
         if v != "full" and "full" in scores:
             metrics[v]["minus_full"] = verdicts.minus(scores[v], scores["full"], ratio)
         metrics[v] |= {"like_for_like_baseline": looks[v].baseline, "versus_baselines": against,
                        "beats_baselines": all(a["beats"] for a in against.values())}
-    metrics["baselines"] = {b: {m: base[0][b][m] for m in verdicts.METRICS} | {"per_split": scores[b],
-                                                                             "over_splits": summary[b]}
+    metrics["baselines"] = {b: _mean_scores(summary[b]) | {"first_split": _first_split(split_names[0], base[0][b]),
+                                                           "per_split": scores[b], "over_splits": summary[b]}
                             for b in BASELINES}
     rows, text = verdicts.order_by_mae({v: scores[v] for v in variants}, ratio)
     metrics["ablation_order_by_mae"] = [r["method"] for r in rows]
@@ -134,10 +141,9 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
     metrics["paper_orderings"] = verdicts.paper_orderings(scene, {v: scores[v] for v in variants}, ratio)
     metrics["beats_baselines"] = {v: metrics[v]["beats_baselines"] for v in variants}
     metrics["every_variant_beats_baselines"] = all(metrics["beats_baselines"].values())
-    metrics["split"] = split_names[0]
+    metrics["first_split"] = {"split": split_names[0], "test_pairs": int(len(splits[0]["test"]))}
     metrics["splits"] = split_names
     metrics["repeats"] = k_repeats
-    metrics["test_pairs"] = int(len(splits[0]["test"]))
     metrics["test_pairs_per_split"] = [len(s["test"]) for s in splits]
     metrics["test_train_ratio"] = ratio
     if plan.loto:
@@ -147,7 +153,8 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
         loto_ratio = float(np.mean([len(s["test"]) / len(s["train"]) for s in loto_splits]))
         metrics["loto"] = {"per_tool": per_tool, "over_tools": {
             m: interval([p[m] for p in per_tool.values()], test_train_ratio=loto_ratio) for m in verdicts.METRICS}}
-    write_json(scene_dir / "metrics.json", metrics)
+    write_json(scene_dir / "scores.json", metrics)
+    write_json(scene_dir / "metrics.json", headline(metrics, variants))
 
     # --- tables ---------------------------------------------------------------------------------
     split0_rows = []
@@ -206,6 +213,23 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
     if plan.loto:
         fm.loto_bars(metrics["loto"], label, figs / "loto.png", looks=looks)
     return metrics
+
+
+def _mean_scores(over_splits: dict[str, dict]) -> dict[str, float]:
+    """A model's scores: the mean of each over the repeated splits (its interval is in over_splits)."""
+    return {m: over_splits[m]["mean"] for m in verdicts.METRICS}
+
+
+def _first_split(name: str, e: dict) -> dict:
+    """One split's scores, under a key that says which: the split the figures and the variants table draw."""
+    return {"split": name} | {k: e[k] for k in FIRST_SPLIT_KEYS}
+
+
+def headline(scores: dict, variants: list[str]) -> dict:
+    """metrics.json, DVC's metrics: each variant's mean scores over the repeated splits and their
+    count. The intervals, the first split, the baselines and the verdicts are in scores.json: each
+    metric is a column of `dvc metrics show` and `dvc exp show`, and all of them buried the scores."""
+    return {v: {m: scores[v][m] for m in verdicts.METRICS} for v in variants} | {"repeats": scores["repeats"]}
 
 
 def _interval_table(summary: dict[str, dict]) -> pd.DataFrame:
