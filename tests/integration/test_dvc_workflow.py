@@ -140,7 +140,7 @@ def test_dvc_repro_records_every_stage_and_its_metrics(repo):
     shown = json.dumps(repo["baseline"]["metrics"])
     for scene in ("volume", "drift", "tool_normal", "tool_shear"):
         assert f"{SMOKE}/{scene}/metrics.json" in shown, scene
-    volume = json.loads((results(repo["wd"]) / "volume/metrics.json").read_text())
+    volume = json.loads((results(repo["wd"]) / "volume/scores.json").read_text())
     assert volume["scale"] == "smoke" and volume["r2"]["fy_fz"]["mean"] > 0.9
 
 

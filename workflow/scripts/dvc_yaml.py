@@ -6,8 +6,8 @@ a name and the Snakemake targets its command builds (one stage per scene step). 
 - outs: the files its jobs write, each folded into the largest folder that holds nothing but
   this stage's outputs (a recording session at most under raw/); metrics.json is the metrics
   (the headline numbers only: `dvc metrics show` and `dvc exp show` make a column of each), and
-  provenance.json, runtime.json and a tool scene's scores.json (every score, split by split) are
-  outs; all `cache: false` (kept in git);
+  provenance.json, runtime.json and scores.json (every number the report makes) are outs; all
+  `cache: false` (kept in git);
 - deps: the outputs of other stages its jobs read (as those stages declare them), the raw
   recordings folder of each scene it reads, every source file of the CLI stages its rules run
   (their import closure), and the rule files that define its jobs;
@@ -51,7 +51,7 @@ STAMP = re.compile(r"^(results/[^/]+/params|/.*/changed-params)/([^/]+/)?[^/]+\.
 COMMAND = "snakemake --cores 2 --workflow-profile workflow/profiles/default"
 METRICS = {"metrics.json"}
 # kept in git beside the metrics, but not metrics: what made them (provenance), how long it took
-# (run times change on every run) and the detail behind the headline (a tool scene's scores.json)
+# (run times change on every run) and every number behind the headline (scores.json)
 UNCACHED_OUTS = {"provenance.json", "runtime.json", "scores.json"}
 ALWAYS_RULE_FILES = ["Snakefile", "workflow/rules/common.smk"]
 

@@ -3,9 +3,10 @@ scores at a revision, and the layouts earlier revisions wrote read in today's, s
 across a change of layout compares the same numbers under the same names (the committed results
 of every earlier commit stay readable).
 
-A tool scene's scores are in its ``scores.json``; its ``metrics.json`` holds their headline only
-(DVC's metrics). Revisions from before scores.json kept everything in ``metrics.json``, with each
-model's top-level ``mae``, ``rmse`` and ``r2`` the first split's values (``current_layout``).
+A scene's numbers are in its ``scores.json``; its ``metrics.json`` holds their headline only
+(DVC's metrics). Revisions from before scores.json kept everything in ``metrics.json``, a tool
+scene's with each model's top-level ``mae``, ``rmse`` and ``r2`` the first split's values
+(``current_layout``).
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ FIRST_SPLIT_KEYS = ("mae", "rmse", "r2", "slope", "intercept")     # a model's s
 
 
 def read_run(rev: str | None, repo: str = ".", scenes=tuple(SCENE_TABLE), build: str = "default") -> dict[str, dict | None]:
-    """Each scene's scores (a tool scene's ``scores.json``, else its ``metrics.json``) and
+    """Each scene's numbers (its ``scores.json``, else, in earlier revisions, its ``metrics.json``) and
     ``provenance.json`` of ``build`` (results/<build>/) at ``rev`` (None: the workspace), as
     {"metrics", "provenance"}; a scene the run does not have is None. Revisions from before
     builds had folders kept the default scale's results in results/<scene>/: the default build
@@ -36,8 +37,6 @@ def read_run(rev: str | None, repo: str = ".", scenes=tuple(SCENE_TABLE), build:
         for root in roots:
             files = {}
             for name in ("scores", "metrics", "provenance"):
-                if name == "scores" and scene not in TOOL_SCENES:
-                    continue
                 path = f"{root}/{scene}/{name}.json"
                 try:
                     files[name] = json.loads(dvc.api.read(path, repo=repo, rev=rev))
@@ -45,9 +44,9 @@ def read_run(rev: str | None, repo: str = ".", scenes=tuple(SCENE_TABLE), build:
                     files[name] = None
                 except (DvcException, json.JSONDecodeError) as exc:
                     raise InputError(f"{path} at {rev or 'the workspace'}", str(exc).splitlines()[0]) from None
-            if files.get("scores") is not None:            # the scores in full; metrics.json their headline
+            if files["scores"] is not None:                # every number; metrics.json their headline
                 files["metrics"] = files["scores"]
-            files.pop("scores", None)
+            del files["scores"]
             if files["metrics"] is not None:
                 break
         out[scene] = files if files["metrics"] is not None else None

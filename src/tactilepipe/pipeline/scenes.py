@@ -29,11 +29,11 @@ SCENES: dict[str, Scene] = {
 }
 
 # what each scene ends in, under results/<build>/<scene>/ (the report stages write these names)
-VOLUME_OUTPUTS = ["metrics.json", "provenance.json", "runtime.json"] + \
+VOLUME_OUTPUTS = ["metrics.json", "scores.json", "provenance.json", "runtime.json"] + \
     [f"tables/{t}.md" for t in ("table1_r2", "table2_volumes", "unseen_volumes", "runtime", "grid_search")] + \
     [f"figures/{f}.png" for f in ("r2_by_modality", "mu_r2_curve", "true_vs_estimated", "error_vs_runtime",
                                   "pillar_map")]
-DRIFT_OUTPUTS = ["metrics.json", "provenance.json", "fits.md", "figures/drift_curves.png"]
+DRIFT_OUTPUTS = ["metrics.json", "scores.json", "provenance.json", "fits.md", "figures/drift_curves.png"]
 TOOL_DATA_FIGURES = ["force_histogram", "force_profiles", "rmse_vs_force", "pressing_strip"]
 
 
@@ -103,7 +103,7 @@ def report_outputs(name: str, results: str) -> list[str]:
 
 def report_items(files, scene_name: str, p: dict) -> list[tuple[str, str | None, str | None]]:
     """(file, caption, subcategory) of each output, for `snakemake --report`: caption None for an
-    output that is not a report item (provenance, run times, a tool scene's scores.json; a Markdown table, whose HTML twin is
+    output that is not a report item (provenance, run times, scores.json; a Markdown table, whose HTML twin is
     the item: the report shows HTML as a page, Markdown only as a download). ``scene_name`` may be
     the rules' "{scene}" wildcard: tool scenes share the tool captions (workflow/report/tool/)."""
     group = scene_name if scene_name in ("volume", "drift") else "tool"
