@@ -225,7 +225,7 @@ CLUSTER_RUNS = ["tool_normal/models/full"]
 def comparable(wd: Path) -> dict:
     """The results that must not depend on where a job ran (no run times)."""
     out = {}
-    vm = json.loads((results(wd) / "volume/metrics.json").read_text())
+    vm = json.loads((results(wd) / "volume/scores.json").read_text())
     out["volume"] = {k: vm[k] for k in ("r2", "mu_star", "unseen_ml")}
     dm = json.loads((results(wd) / "drift/metrics.json").read_text())
     out["drift"] = dm["drift_30min_n"]

@@ -137,7 +137,7 @@ def test_dvc_repro_records_every_stage_and_its_metrics(repo):
     shown = json.dumps(repo["baseline"]["metrics"])
     for scene in ("volume", "drift", "tool_normal", "tool_shear"):
         assert f"{SMOKE}/{scene}/metrics.json" in shown, scene
-    volume = json.loads((results(repo["wd"]) / "volume/metrics.json").read_text())
+    volume = json.loads((results(repo["wd"]) / "volume/scores.json").read_text())
     assert volume["scale"] == "smoke" and volume["r2"]["fy_fz"]["mean"] > 0.9
 
 
@@ -161,7 +161,8 @@ def take_in_session(repo: dict, scene: str, session: str, simulate_flags: list[s
              "diff": json.loads(dvc(wd, "metrics", "diff", "--json").stdout),
              "diff_md": dvc(wd, "metrics", "diff", "--md").stdout}
     # each scene's metrics travel with its provenance and run times, and the rules' parameter stamps
-    records = [str(Path(m).with_name(n)) for m in metrics for n in ("metrics.json", "provenance.json", "runtime.json")
+    records = [str(Path(m).with_name(n)) for m in metrics
+               for n in ("metrics.json", "scores.json", "provenance.json", "runtime.json")
                if (wd / Path(m).with_name(n)).exists()]
     git(wd, "add", "params.yaml", "dvc.lock", f"raw/{scene}/{session}.dvc", f"raw/{scene}/.gitignore", *records,
         f"{SMOKE}/params")
@@ -197,11 +198,11 @@ def test_new_session_reruns_only_the_volume_stage_and_ingests_only_new_bags(repo
         p = results(wd) / "volume/shards/sim-smoke" / name
         assert p.stat().st_mtime_ns == mtime and p.read_bytes() == data, name
     assert len(list((results(wd) / f"volume/shards/{NEW}").glob("*.parquet"))) == new_session["n_new"]
-    # the metrics diff against the last commit: the volume scene changed, nothing else
+    # the metrics diff against the last commit: the volume scene changed, nothing else; and it
+    # lists metrics only, not what made them (provenance) nor how long it took (run times)
     diff = new_session["diff"]
-    assert set(diff) == {f"{SMOKE}/volume/metrics.json", f"{SMOKE}/volume/provenance.json"}, diff
-    # provenance says why: the new session's content hash appears
-    assert f"sessions.raw/volume/{NEW}" in diff[f"{SMOKE}/volume/provenance.json"], diff
+    assert set(diff) == {f"{SMOKE}/volume/metrics.json"}, diff
+    assert not [k for k in diff[f"{SMOKE}/volume/metrics.json"] if "sessions" in k or "stages" in k], diff
     changed = diff[f"{SMOKE}/volume/metrics.json"]
     assert "r2.fy_fz.mean" in changed and changed["r2.fy_fz.mean"]["old"] != changed["r2.fy_fz.mean"]["new"]
     assert "r2.fy_fz.mean" in new_session["diff_md"] and "HEAD" in new_session["diff_md"]
@@ -240,8 +241,7 @@ def test_new_tool_session_reruns_only_the_tool_stages_and_ingests_only_new_trial
     assert len(list((results(wd) / f"tool/shards/{NEW_TOOL}").glob("*.parquet"))) == new_tool_session["n_new"]
     # the metrics diff against the last commit: both tool scenes changed, nothing else
     diff = new_tool_session["diff"]
-    assert set(diff) == {f"{SMOKE}/{s}/{f}" for s in ("tool_normal", "tool_shear")
-                         for f in ("metrics.json", "provenance.json")}, diff
+    assert set(diff) == {f"{SMOKE}/{s}/metrics.json" for s in ("tool_normal", "tool_shear")}, diff
     assert any(k.startswith("full.") for k in diff[f"{SMOKE}/tool_normal/metrics.json"]), diff
     assert "up to date" in dvc(wd, "status").stdout.lower()
 
@@ -266,7 +266,7 @@ def test_new_drift_session_reruns_only_the_drift_stage(repo, new_drift_session):
     assert counts["drift_report"] == 1 and "drift_simulate" not in counts
     assert len(list((results(wd) / f"drift/shards/{NEW_DRIFT}").glob("*.parquet"))) == new_drift_session["n_new"]
     diff = new_drift_session["diff"]
-    assert set(diff) == {f"{SMOKE}/drift/metrics.json", f"{SMOKE}/drift/provenance.json"}, diff
+    assert set(diff) == {f"{SMOKE}/drift/metrics.json"}, diff
     assert any(k.startswith("drift_30min_n") for k in diff[f"{SMOKE}/drift/metrics.json"]), diff
     assert "up to date" in dvc(wd, "status").stdout.lower()
 
@@ -282,7 +282,7 @@ def test_experiments_rerun_only_the_stages_of_the_changed_params(repo, new_sessi
     assert "papillarray_ingest" not in counts and "tool_ingest" not in counts and "tool_dataset" not in counts
     assert "tool_train" not in counts and counts["tool_model_report"] == 2, counts
     for scene in ("tool_normal", "tool_shear"):
-        m = json.loads((results(wd) / f"{scene}/metrics.json").read_text())
+        m = json.loads((results(wd) / f"{scene}/scores.json").read_text())
         assert "full" in m and "no_ref" not in m, scene
         orderings = (results(wd) / f"{scene}/tables/paper_orderings.md").read_text()   # none with one variant
         assert "none: no ordering is between two of full" in orderings and m["paper_orderings"] == [], scene

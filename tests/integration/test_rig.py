@@ -196,7 +196,7 @@ def test_a_recorded_session_runs_through_the_pipeline_with_no_step_by_hand(rig, 
     assert len(list_trials(session)) == 6
     snakemake(wd, f"{SMOKE}/tool_normal/metrics.json", f"{SMOKE}/tool_normal/qc.md", "--config",
               'tool_sessions=["lab-4"]', "scenes=[tool_normal]")
-    metrics = json.loads((results(wd) / "tool_normal/metrics.json").read_text())
+    metrics = json.loads((results(wd) / "tool_normal/scores.json").read_text())
     qc = (results(wd) / "tool_normal/qc.md").read_text()
     assert "spatula_normal_002" in qc and "screwdriver_1_normal_000" in qc
     for variant in P["tool_train"]["variants"]:          # resolved: "all" spelled out

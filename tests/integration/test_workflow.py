@@ -38,8 +38,12 @@ def linked_copy(src: Path, dest: Path) -> Path:
 
 def test_smoke_builds_every_target_of_both_scenes(smoke_build: Path):
     wd = smoke_build
-    m = json.loads((results(wd) / "volume/metrics.json").read_text())
+    m = json.loads((results(wd) / "volume/scores.json").read_text())
     assert set(m["r2"]) == {"fx_fy_fz", "fy_fz", "fy", "fz", "baseline"}
+    # metrics.json, DVC's metrics, is the headline alone: the mean R² of each input, the best one's gain, μ*
+    assert json.loads((results(wd) / "volume/metrics.json").read_text()) == {
+        "r2": {k: {"mean": v["mean"]} for k, v in m["r2"].items()},
+        "best_minus_baseline": {"mean": m["best_minus_baseline"]["mean"]}, "mu_star": m["mu_star"]}
     for method, r2 in m["r2"].items():
         assert set(r2) >= {"mean", "std"} and all(isinstance(v, float) for v in r2.values()), method
     assert 0.1 <= m["mu_star"] <= 0.4
@@ -71,16 +75,26 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_build: Path):
             assert (results(wd) / f"{scene}/figures/{fig}.png").read_bytes()[:4] == b"\x89PNG"
         assert "| trial |" in (results(wd) / f"{scene}/qc.md").read_text()
         # every model variant trained and evaluated, with the report's tables and figures
-        tm = json.loads((results(wd) / f"{scene}/metrics.json").read_text())
+        tm = json.loads((results(wd) / f"{scene}/scores.json").read_text())
         assert tm["repeats"] == 2 and tm["splits"] == ["trial", "trial_r1"]
-        for variant in ("full", "no_ref", "single", "no_gam"):
-            t = tm[variant]
-            assert {"mae", "rmse", "r2"} <= set(t), (scene, variant)
+        assert tm["first_split"]["split"] == "trial" and "split" not in tm and "test_pairs" not in tm
+        # metrics.json, DVC's metrics, is the headline alone: each variant's mean scores
+        assert json.loads((results(wd) / f"{scene}/metrics.json").read_text()) == \
+            {"repeats": 2, **{v: {m: tm[v][m] for m in ("mae", "rmse", "r2")} for v in ("full", "no_ref", "single", "no_gam")}}
+        for name, t in [(v, tm[v]) for v in ("full", "no_ref", "single", "no_gam")] + list(tm["baselines"].items()):
             assert not {"train_s", "latency_ms"} & set(t), "run times belong in runtime.json"
-            # per-split values (split 0 is the one the top-level numbers and figures use), intervals
-            assert len(t["per_split"]["mae"]) == 2 and t["per_split"]["mae"][0] == t["mae"]
+            # a model's scores are its means over the splits, the interval beside them; the first
+            # split's values (the figures' and the variants table's) under a name that says so
+            for m in ("mae", "rmse", "r2"):
+                assert len(t["per_split"][m]) == 2 and t[m] == t["over_splits"][m]["mean"], (scene, name, m)
+                assert t["first_split"][m] == t["per_split"][m][0] != t[m], (scene, name, m)
+            assert t["first_split"]["split"] == "trial" and {"slope", "intercept"} <= set(t["first_split"]), name
+            assert not {"slope", "intercept"} & set(t), name
             o = t["over_splits"]["mae"]
             assert o["n"] == 2 and o["low"] <= o["mean"] <= o["high"] and o["mean"] == pytest.approx(np.mean(t["per_split"]["mae"]))
+            if name in tm["baselines"]:
+                continue
+            variant = name
             # like-for-like verdicts, and the paired difference to the full model for each ablation
             assert t["like_for_like_baseline"] == {"full": "tactile_rmse_linear", "no_gam": "tactile_rmse_linear",
                                                    "no_ref": "rest_frame_rmse_linear",
@@ -252,7 +266,7 @@ def test_dvc_repro_builds_a_scene_from_nothing(tmp_path: Path):
     run([str(BIN / "dvc"), "init", "-q"], wd)
     out = run([str(BIN / "dvc"), "repro", "volume"], wd)
     assert re.findall(r"Running stage '(\w+)'", out.stdout + out.stderr) == ["volume_simulate", "volume"]
-    m = json.loads((results(wd) / "volume/metrics.json").read_text())
+    m = json.loads((results(wd) / "volume/scores.json").read_text())
     assert m["scale"] == "smoke" and m["r2"]["fy_fz"]["mean"] > 0.9
     shown = json.loads(run([str(BIN / "dvc"), "metrics", "show", "--json"], wd).stdout)
     assert f"{SMOKE}/volume/metrics.json" in json.dumps(shown)
@@ -431,7 +445,7 @@ def test_a_new_model_variant_is_one_entry_in_params_yaml_and_trains_only_its_own
     assert {r: d for r, d in after.items() if "no_gam_copy" not in r} == before          # none trained again
     stamp = json.loads((results(wd) / "params/tool-train/no_gam_copy_r1.json").read_text())
     assert stamp["values"]["run"]["variant"] == {"name": "no_gam_copy", "sensors": [[0, 2], [2, 4]], "gam": False}
-    metrics = json.loads((results(wd) / "tool_normal/metrics.json").read_text())
+    metrics = json.loads((results(wd) / "tool_normal/scores.json").read_text())
     new = metrics["no_gam_copy"]
     assert new["like_for_like_baseline"] == "tactile_rmse_linear" and new["over_splits"]["mae"]["n"] == 2
     assert "| no_gam_copy |" in (results(wd) / "tool_normal/tables/variants.md").read_text()

@@ -13,13 +13,29 @@ from tactilepipe.pipeline import diff
 
 
 def _model(mae: list[float]) -> dict:
+    """A model as scores.json holds it: the means over the splits on top, the first split's under its name."""
     from tactilepipe.core.intervals import interval
     per = {"mae": mae, "rmse": [m * 1.5 for m in mae], "r2": [1 - m / 10 for m in mae]}
-    return {"mae": mae[0], "per_split": per, "over_splits": {k: interval(v, test_train_ratio=0.2) for k, v in per.items()}}
+    over = {k: interval(v, test_train_ratio=0.2) for k, v in per.items()}
+    return {**{k: over[k]["mean"] for k in per}, "first_split": {"split": "trial", **{k: v[0] for k, v in per.items()}},
+            "per_split": per, "over_splits": over}
+
+
+def _old_layout(metrics: dict) -> dict:
+    """The tool scores as metrics.json held them before scores.json: each model's top-level scores
+    its first split's, the scene's first split named by ``split`` beside ``test_pairs``."""
+    m = copy.deepcopy(metrics)
+    first = m.pop("first_split")
+    m["split"], m["test_pairs"] = first["split"], first["test_pairs"]
+    for model in m.values():
+        if isinstance(model, dict) and "per_split" in model:
+            model.update({k: v for k, v in model.pop("first_split").items() if k != "split"})
+    return m
 
 
 def _tool_run(**models) -> dict:
     metrics = {"test_train_ratio": 0.2, "splits": ["trial", "trial_r1", "trial_r2"],
+               "first_split": {"split": "trial", "test_pairs": 100},
                "beats_baselines": {k: True for k in models}, **{k: _model(v) for k, v in models.items()}}
     provenance = {"sessions": {"raw/tool/s": "abc"},
                   "stages": {"tool-split": {"code_sha256": "1", "params": {"seed": 1}},
@@ -54,6 +70,24 @@ def test_a_consistent_shift_over_the_same_splits_is_signal_and_scatter_is_noise(
     fails = diff.failures([d], {"mae": 0.1})
     assert [(r.model, r.metric) for r in fails] == [("full", "mae")]
     assert diff.failures([d], {"mae": 0.3}) == []
+
+
+def test_a_run_in_the_layout_before_scores_json_reads_as_todays_and_compares_unchanged():
+    """A committed run of an earlier revision (top-level scores its first split's) against the same
+    numbers in today's layout: no score or first-split value is added, removed or changed."""
+    new = _tool_run(full=BASE, single=[b + 0.5 for b in BASE])
+    old = {**new, "metrics": _old_layout(new["metrics"])}
+    assert old["metrics"]["full"]["mae"] == BASE[0] != new["metrics"]["full"]["mae"]
+    assert diff.current_layout("tool_normal", old["metrics"]) == new["metrics"]
+    d = diff.compare_scene("tool_normal", old, new)
+    assert d.verdict == "unchanged" and {r.verdict for r in d.rows} == {"same"}, [r for r in d.rows if r.verdict != "same"]
+    assert _row(d, "", "full.first_split.mae").new == BASE[0]
+    assert _row(d, "full", "mae").new == pytest.approx(sum(BASE) / len(BASE))
+    assert not [r for r in d.rows if r.how == "single value" and r.metric in ("full.mae", "full.rmse", "full.r2")]
+    # a first split that moved, its mean not: a changed single value, named as the first split's
+    moved = copy.deepcopy(new)
+    moved["metrics"]["full"]["first_split"]["mae"] += 0.1
+    assert _row(diff.compare_scene("tool_normal", old, moved), "", "full.first_split.mae").verdict == "changed"
 
 
 def test_other_splits_are_judged_by_their_intervals():
@@ -181,24 +215,32 @@ def test_a_6_repeat_and_an_8_repeat_build_are_paired_over_their_6_shared_draws()
 
 # --- through the command line -------------------------------------------------------------------------
 
-def _write_run(root, run: dict) -> None:
+def _write_run(root, run: dict, old_layout: bool = False) -> None:
+    """A tool run's files as the report writes them: scores.json and its headline, metrics.json; or
+    (``old_layout``) as an earlier revision did, everything in metrics.json."""
     import json
     scene = root / "results" / "tool_normal"
     scene.mkdir(parents=True, exist_ok=True)
     # json writes NaN as NaN, as the pipeline's metrics would
-    (scene / "metrics.json").write_text(json.dumps(run["metrics"]))
+    if old_layout:
+        (scene / "scores.json").unlink(missing_ok=True)
+        (scene / "metrics.json").write_text(json.dumps(_old_layout(run["metrics"])))
+    else:
+        (scene / "scores.json").write_text(json.dumps(run["metrics"]))
+        (scene / "metrics.json").write_text(json.dumps({"full": {"mae": run["metrics"]["full"]["mae"]}}))
     (scene / "provenance.json").write_text(json.dumps(run["provenance"]))
 
 
 @pytest.fixture(scope="module")
 def committed(tmp_path_factory):
-    """A git repository (with DVC) whose HEAD holds one tool run's metrics."""
+    """A git repository (with DVC) whose HEAD holds one tool run's metrics, in the layout before
+    scores.json: the diffs against it read an earlier commit's results."""
     import subprocess
     root = tmp_path_factory.mktemp("diffrepo")
     git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-c", "commit.gpgsign=false"]
     subprocess.run(["git", "init", "-q", str(root)], check=True)
     subprocess.run([sys.executable, "-m", "dvc", "init", "-q"], cwd=root, check=True)
-    _write_run(root, _tool_run(full=BASE, single=BASE))
+    _write_run(root, _tool_run(full=BASE, single=BASE), old_layout=True)
     subprocess.run(git + ["add", "-A"], cwd=root, check=True)
     subprocess.run(git + ["commit", "-q", "-m", "run"], cwd=root, check=True)
     return root
@@ -216,6 +258,14 @@ def test_the_ci_gate_fails_a_run_whose_mae_became_nan_or_null(committed, bad, ca
     assert status == 1, out + err
     assert "within noise" not in out and "full mae non-finite" in out
     assert "tool_normal: full mae is not a number in the new run" in err
+
+
+def test_the_same_run_committed_in_the_old_layout_and_written_in_todays_is_unchanged(committed, capsys):
+    from tactilepipe.cli.main import main
+    _write_run(committed, _tool_run(full=BASE, single=BASE))
+    status = main(["diff", "--repo", str(committed), "--scenes", "tool_normal", "--fail-on", "mae=0"])
+    out, err = capsys.readouterr()
+    assert status == 0 and "**tool_normal**: unchanged" in out, out + err
 
 
 @pytest.mark.parametrize("tolerance", ["nan", "inf", "-0.1"])

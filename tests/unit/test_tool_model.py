@@ -441,8 +441,40 @@ def test_over_time_figure_shows_the_strongest_trial_of_each_tool(tmp_path):
     assert strongest_trial_per_tool(pred) == ["k/a", "s/b"]
     from tactilepipe.tool.model.variants import defined_variants
     looks = defined_variants(load_params(REPO / "params.yaml")["tool_variants"])
-    over_time({"full": pred, "single": pred}, "normal", tmp_path / "fig.png", looks=looks)
+    over_time({"full": pred, "single": pred}, "normal", tmp_path / "fig.png", looks=looks, split="trial")
     assert (tmp_path / "fig.png").stat().st_size > 10_000
+
+
+def test_every_figure_drawn_from_one_split_names_that_split_in_its_title_and_caption(tmp_path, monkeypatch):
+    """Figs. 5-10 show one split's test set, a single draw of the scores over the repeated splits:
+    each title names the split it was drawn from, and so does each figure's report caption."""
+    from tactilepipe.tool.report import figures_models as fm
+    from tactilepipe.tool.model.evaluate import evaluate
+    from tactilepipe.tool.model.variants import defined_variants
+    titles = {}
+    monkeypatch.setattr(fm, "save_figure", lambda out, fig: titles.__setitem__(out.stem, " ".join(
+        [t.get_text() for t in fig.texts] + [ax.get_title() for ax in fig.axes])))
+    looks = defined_variants(load_params(REPO / "params.yaml")["tool_variants"])
+    t = np.linspace(0, 3, 40)
+    pred = pd.concat([pd.DataFrame({"tool": tool, "trial": f"{tool}/0", "t_s": t, "true": 6 * np.sin(np.pi * t / 3),
+                                    "pred": 6 * np.sin(np.pi * t / 3) + 0.2}) for tool in ("knife", "spatula")],
+                     ignore_index=True)
+    e = evaluate(pred)
+    preds, evals = {"full": pred, "single": pred}, {"full": e, "single": e}
+    fm.sorted_predictions(pred, "normal", tmp_path / "sorted_predictions.png", split="trial_r3")
+    fm.over_time(preds, "normal", tmp_path / "over_time.png", looks=looks, split="trial_r3")
+    fm.per_tool_bars({v: pd.DataFrame(x["per_tool"]) for v, x in evals.items()}, tmp_path / "per_tool.png",
+                     looks=looks, split="trial_r3")
+    fm.window_heatmap({v: pd.DataFrame(x["per_window"]) for v, x in evals.items()}, tmp_path / "window_heatmap.png",
+                      looks=looks, split="trial_r3")
+    fm.regression_grid(preds, evals, "normal", tmp_path / "regression.png", looks=looks, split="trial_r3")
+    one_split = ["sorted_predictions", "over_time", "per_tool", "window_heatmap", "regression"]
+    assert sorted(titles) == sorted(one_split)
+    for name, title in titles.items():
+        assert "split 'trial_r3'" in title, (name, title)
+    for name in one_split + ["per_tool_table", "per_window"]:
+        caption = (REPO / "workflow/report/tool" / f"{name}.rst").read_text()
+        assert "snakemake.config['tool_train']['split']" in caption and "first" in caption, name
 
 
 def test_a_verdict_needs_both_improvements_separated_from_zero_over_the_draws():

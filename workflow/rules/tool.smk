@@ -182,6 +182,7 @@ rule tool_model_report:
         provenance=lambda w: provenance_inputs(w.scene),
     output:
         metrics=reported([f"{RESULTS}/{{scene}}/metrics.json"], "{scene}")[0],
+        scores=f"{RESULTS}/{{scene}}/scores.json",
         provenance=f"{RESULTS}/{{scene}}/provenance.json",
         runtime=f"{RESULTS}/{{scene}}/runtime.json",
         tables=reported(expand(RESULTS + "/{{scene}}/tables/{t}.md", t=scenes.tool_model_tables(P)), "{scene}"),

@@ -4,8 +4,10 @@ DVC and Snakemake must agree on what depends on what, so the DVC stages are deri
 Snakemake plans, never written by hand. The only choices made here are the stages themselves:
 a name and the Snakemake targets its command builds (one stage per scene step). For each stage:
 - outs: the files its jobs write, each folded into the largest folder that holds nothing but
-  this stage's outputs (a recording session at most under raw/); metrics.json and
-  provenance.json are metrics and runtime.json an out, all three `cache: false` (kept in git);
+  this stage's outputs (a recording session at most under raw/); metrics.json is the metrics
+  (the headline numbers only: `dvc metrics show` and `dvc exp show` make a column of each), and
+  provenance.json, runtime.json and scores.json (every number the report makes) are outs; all
+  `cache: false` (kept in git);
 - deps: the outputs of other stages its jobs read (as those stages declare them), the raw
   recordings folder of each scene it reads, every source file of the CLI stages its rules run
   (their import closure), and the rule files that define its jobs;
@@ -59,8 +61,10 @@ DATA_PLOTS = {
     "intervals.csv": {"x": "mae_mean", "y": "model", "template": "bar_horizontal",
                       "title": "{scene}: mean test MAE (N) over the repeated splits, per variant and baseline"},
 }
-METRICS = {"metrics.json", "provenance.json"}
-UNCACHED_OUTS = {"runtime.json"}
+METRICS = {"metrics.json"}
+# kept in git beside the metrics, but not metrics: what made them (provenance), how long it took
+# (run times change on every run) and every number behind the headline (scores.json)
+UNCACHED_OUTS = {"provenance.json", "runtime.json", "scores.json"}
 ALWAYS_RULE_FILES = ["Snakefile", "workflow/rules/common.smk"]
 
 

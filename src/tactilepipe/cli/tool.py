@@ -144,7 +144,7 @@ def _train_run(args) -> dict:
     return run_definition(load_params(args.params, param_overrides(args)), args.run)
 
 
-@command("tool-model-report", "metrics.json, tables and figures of a tool scene's models",
+@command("tool-model-report", "scores.json, metrics.json, tables and figures of a tool scene's models",
          checks=TOOL_CHECKS,
          params=("tool_train.variants", "tool_train.split", "tool_train.depth", "tool_train.image_size",
                  "tool_train.sweep", "tool_variants", "tool_report.equivalence_margin"),

@@ -252,9 +252,15 @@ def fits_markdown(fits: DriftFits, tolerance_n: float) -> str:
     return "\n".join(lines) + "\n"
 
 
+# metrics.json, DVC's metrics: what drifted in 30 min and how often to recalibrate, per run. Each
+# metric is a column of `dvc metrics show` and `dvc exp show`; the fits are in scores.json.
+HEADLINE = ("drift_30min_n", "recalibration_interval_min")
+
+
 def run(shards, session_meta: str | Path, out_dir: str | Path, params: dict) -> dict:
-    """Shards of one drift session and its session.json -> metrics.json, drift_series.csv,
-    fits.csv, fits.md (and its HTML twin), figure."""
+    """Shards of one drift session and its session.json -> scores.json (every number; returned),
+    metrics.json (its headline: HEADLINE), drift_series.csv, fits.csv, fits.md (and its HTML
+    twin), figure."""
     from tactilepipe.drift import read_session_meta
     from tactilepipe.drift.figures import write_drift_figure  # matplotlib only when writing outputs
 
@@ -269,5 +275,6 @@ def run(shards, session_meta: str | Path, out_dir: str | Path, params: dict) -> 
     write_text(out_dir / "fits.md", page)
     write_text(out_dir / "fits.html", markdown_html(page))     # what the Snakemake report shows
     write_drift_figure(out_dir / "figures" / "drift_curves.png", series, fits, tolerance)
-    write_json(out_dir / "metrics.json", metrics)
+    write_json(out_dir / "scores.json", metrics)
+    write_json(out_dir / "metrics.json", {k: metrics[k] for k in HEADLINE})
     return metrics

@@ -20,6 +20,9 @@ A run is a git revision, a DVC experiment or the workspace; its files are read t
   arithmetic summed in another order (another CPU's vector width in NumPy or BLAS).
 
 A scene's verdict is one line: unchanged, changes within noise only, or the signals, worst first.
+
+A run's files are read by ``run_files.py``: a tool scene's scores from its ``scores.json`` (its
+``metrics.json`` is their headline), and earlier revisions' layouts in today's.
 """
 
 from __future__ import annotations
@@ -29,9 +32,8 @@ import json
 import math
 from dataclasses import dataclass, field
 
-from tactilepipe.core.errors import InputError
 from tactilepipe.core.intervals import paired_difference
-from tactilepipe.pipeline.layout import results_root
+from tactilepipe.pipeline.run_files import current_layout, read_run  # noqa: F401 (read_run: diff's reader)
 from tactilepipe.pipeline.scenes import SCENES as SCENE_TABLE
 from tactilepipe.tool.scenes import TOOL_SCENES
 
@@ -124,32 +126,6 @@ class SceneDiff:
 
 
 # ----------------------------------------------------------------------------- reading a run
-
-def read_run(rev: str | None, repo: str = ".", scenes=SCENES, build: str = "default") -> dict[str, dict | None]:
-    """Each scene's ``metrics.json`` and ``provenance.json`` of ``build`` (results/<build>/) at
-    ``rev`` (None: the workspace); a scene the run does not have is None. Revisions from before
-    builds had folders kept the default scale's results in results/<scene>/: the default build
-    is read there when its folder is absent, so a diff across that move still compares."""
-    import dvc.api
-    from dvc.exceptions import DvcException, PathMissingError
-    roots = [results_root(build)] + (["results"] if build == "default" else [])
-    out = {}
-    for scene in scenes:
-        for root in roots:
-            files = {}
-            for name in ("metrics", "provenance"):
-                path = f"{root}/{scene}/{name}.json"
-                try:
-                    files[name] = json.loads(dvc.api.read(path, repo=repo, rev=rev))
-                except (FileNotFoundError, PathMissingError):
-                    files[name] = None
-                except (DvcException, json.JSONDecodeError) as exc:
-                    raise InputError(f"{path} at {rev or 'the workspace'}", str(exc).splitlines()[0]) from None
-            if files["metrics"] is not None:
-                break
-        out[scene] = files if files["metrics"] is not None else None
-    return out
-
 
 def draws_identity(provenance: dict | None) -> str | None:
     """What fixes a scene's draws: its recordings (by DVC's hash; older runs' own sha256 pairs only
@@ -247,6 +223,8 @@ def single_values(scene: str, metrics: dict) -> dict[str, float | str | bool]:
     if scene == "volume":
         skip.add("r2")
     out = {}
+    # a tool model's top-level scores are the means of its scored series: compared there, not twice
+    scored = lambda node: scene in TOOL_SCENES and "per_split" in node
 
     def walk(node, path):
         if node is None:                  # a null is kept: a value that became null has changed
@@ -257,7 +235,7 @@ def single_values(scene: str, metrics: dict) -> dict[str, float | str | bool]:
             out[path] = float(node)
         elif isinstance(node, dict):
             for k, v in node.items():
-                if k not in skip:
+                if k not in skip and not (k in TOOL_SCORES and scored(node)):
                     walk(v, f"{path}.{k}" if path else str(k))
         elif isinstance(node, list):
             for i, v in enumerate(node):
@@ -296,6 +274,7 @@ def compare_scene(scene: str, old: dict | None, new: dict | None) -> SceneDiff:
         which = "either run" if old is None and new is None else ("the old run" if old is None else "the new run")
         return SceneDiff(scene, note=f"not in {which}")
     out = SceneDiff(scene)
+    old, new = ({**run, "metrics": current_layout(scene, run["metrics"])} for run in (old, new))
     paired = draws_identity(old["provenance"]) == draws_identity(new["provenance"]) is not None
     # otherwise the draws whose baselines show them to be the same splits (a tool scene)
     shown = None if paired else draws_shown_same(scene, old["metrics"], new["metrics"])

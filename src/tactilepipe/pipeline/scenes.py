@@ -41,11 +41,11 @@ def figure_files(folder: str, names, study: str) -> list[str]:
 
 
 # what each scene ends in, under results/<build>/<scene>/ (the report stages write these names)
-VOLUME_OUTPUTS = ["metrics.json", "provenance.json", "runtime.json"] + \
+VOLUME_OUTPUTS = ["metrics.json", "scores.json", "provenance.json", "runtime.json"] + \
     [f"tables/{t}.md" for t in ("table1_r2", "table2_volumes", "unseen_volumes", "runtime", "grid_search")] + \
     figure_files("figures", ("r2_by_modality", "mu_r2_curve", "true_vs_estimated", "error_vs_runtime",
                              "pillar_map"), "volume")
-DRIFT_OUTPUTS = ["metrics.json", "provenance.json", "fits.md"] + figure_files("figures", ["drift_curves"], "drift")
+DRIFT_OUTPUTS = ["metrics.json", "scores.json", "provenance.json", "fits.md"] + figure_files("figures", ["drift_curves"], "drift")
 TOOL_DATA_FIGURES = ["force_histogram", "force_profiles", "rmse_vs_force", "pressing_strip"]
 
 
@@ -91,7 +91,7 @@ def tool_data_targets(name: str, results: str, p: dict, sheet: SessionSheet) -> 
 
 def tool_model_targets(name: str, results: str, p: dict) -> list[str]:
     """Metrics, tables and figures of every trained model run of a tool scene."""
-    return [f"{results}/{name}/{f}.json" for f in ("metrics", "provenance", "runtime")] + \
+    return [f"{results}/{name}/{f}.json" for f in ("metrics", "scores", "provenance", "runtime")] + \
         [f"{results}/{name}/tables/{t}.md" for t in tool_model_tables(p)] + \
         figure_files(f"{results}/{name}/figures", tool_model_figures(p), "tool")
 
@@ -145,7 +145,7 @@ REPORT_LABELS = {
 
 def report_items(files, scene_name: str, p: dict) -> list[tuple[str, str | None, str | None, dict | None]]:
     """(file, caption, subcategory, labels) of each output, for `snakemake --report`: caption None
-    for an output that is not a report item (provenance, run times; a Markdown table, whose HTML
+    for an output that is not a report item (provenance, run times, scores.json; a Markdown table, whose HTML
     twin is the item: the report shows HTML as a page, Markdown only as a download). ``scene_name``
     may be the rules' "{scene}" wildcard: tool scenes share the tool captions (workflow/report/tool/)."""
     group = scene_name if scene_name in ("volume", "drift") else "tool"
@@ -153,7 +153,7 @@ def report_items(files, scene_name: str, p: dict) -> list[tuple[str, str | None,
     for f in files:
         path = Path(f)
         # a figure's vector twin and data: files beside the report's PNG item, not items of their own
-        if path.name in ("provenance.json", "runtime.json") or (path.parent.name == "figures"
+        if path.name in ("provenance.json", "runtime.json", "scores.json") or (path.parent.name == "figures"
                                                                  and path.suffix in (".svg", ".csv")):
             out.append((f, None, None, None))
             continue

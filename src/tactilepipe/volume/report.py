@@ -1,4 +1,5 @@
-"""Volume scene results: metrics.json, Tables 1-2, unseen volumes, run time, and the figures."""
+"""Volume scene results: scores.json (every number) and metrics.json (its headline), Tables 1-2,
+unseen volumes, run time, and the figures."""
 
 from __future__ import annotations
 
@@ -14,6 +15,14 @@ from tactilepipe.core.intervals import interval, paired_difference, ranking, ran
 from tactilepipe.core.metrics import R2_CONSTANT, format_metric
 from tactilepipe.core.tables import write_table
 from tactilepipe.volume import figures
+
+
+def headline(scores: dict) -> dict:
+    """metrics.json, DVC's metrics: each input's mean R² over the folds, the best MLP's paired gain
+    on the baseline, and the baseline's μ*. Each metric is a column of `dvc metrics show` and `dvc
+    exp show`; the folds, intervals, tables and QC names are in scores.json beside it."""
+    return {"r2": {m: {"mean": v["mean"]} for m, v in scores["r2"].items()},
+            "best_minus_baseline": {"mean": scores["best_minus_baseline"]["mean"]}, "mu_star": scores["mu_star"]}
 
 
 def _summary(folds: pd.DataFrame, test_train_ratio: float) -> dict:
@@ -185,7 +194,8 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
         "lifts_standing_out": _lifts_left_out(res / "qc.csv"),
     }
     metrics = _json_safe(metrics)
-    write_json(res / "metrics.json", metrics)
+    write_json(res / "scores.json", metrics)
+    write_json(res / "metrics.json", headline(metrics))
     # run times change on every run: kept apart so a metrics diff shows what the results did
     write_json(res / "runtime.json", _json_safe({r.method: {"fit_s": r.fit_s,
                                                              "predict_us_per_sample": r.predict_us_per_sample}

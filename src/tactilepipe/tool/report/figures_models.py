@@ -1,7 +1,9 @@
 """Figures of the tool-force models (study 000, Figs. 5-10) and the error-against-run-time plot.
 
 Each takes plain tables (predictions with columns true, pred, tool, trial, t_s; metrics dicts),
-so a newcomer finds every model figure here.
+so a newcomer finds every model figure here. A figure drawn from one split's test set (Figs. 5-10)
+takes that split's name and puts it in its title (``on_split``): the scores over every split are
+elsewhere (``interval_bars``), and one split's are a single draw of them.
 """
 
 from __future__ import annotations
@@ -27,7 +29,12 @@ def _label(looks: dict[str, Variant], name: str, default: str | None = None) -> 
     return looks[name].label if name in looks else (default or name)
 
 
-def sorted_predictions(pred: pd.DataFrame, label: str, out: Path) -> None:
+def on_split(split: str) -> str:
+    """How a one-split figure names its split in its title."""
+    return f"test set of split '{split}'"
+
+
+def sorted_predictions(pred: pd.DataFrame, label: str, out: Path, *, split: str) -> None:
     """Fig. 5: test predictions and ground truth, sorted by the true force."""
     order = np.argsort(pred["true"].to_numpy(), kind="stable")
     fig, ax = figure(6.0, 3.2)
@@ -35,7 +42,7 @@ def sorted_predictions(pred: pd.DataFrame, label: str, out: Path) -> None:
     ax.plot(pred["true"].to_numpy()[order], "-", lw=1.5, color="k", label="ground truth (Nano17)")
     ax.set_xlabel("test frame pairs, sorted by true force")
     ax.set_ylabel(f"{label} force (N)")
-    ax.set_title("Full model on the test set")
+    ax.set_title(f"Full model on the {on_split(split)}")
     ax.legend(loc="upper left")
     save_figure(out, fig)
     close(fig)
@@ -47,7 +54,8 @@ def strongest_trial_per_tool(pred: pd.DataFrame) -> list[str]:
     return peaks.sort_values(["tool", "true"], ascending=[True, False]).groupby("tool").head(1)["trial"].tolist()
 
 
-def over_time(preds: dict[str, pd.DataFrame], label: str, out: Path, gap_s: float = 0.5, *, looks: dict[str, Variant]) -> None:
+def over_time(preds: dict[str, pd.DataFrame], label: str, out: Path, gap_s: float = 0.5, *, looks: dict[str, Variant],
+              split: str) -> None:
     """Fig. 6: predictions over time, per variant, for several presses: the test trial with the
     highest peak of each tool, laid end to end (trials are a few seconds, one or two presses each)."""
     first = next(iter(preds.values()))
@@ -70,13 +78,13 @@ def over_time(preds: dict[str, pd.DataFrame], label: str, out: Path, gap_s: floa
             ax.axvline(offset - gap_s / 2, color="0.7", lw=0.8, ls=":")
     ax.set_xlabel("time within each test trial, trials end to end (s)")
     ax.set_ylabel(f"{label} force (N)")
-    ax.set_title("Predictions over time: the strongest test trial of each tool", pad=14)
+    ax.set_title(f"Predictions over time: the strongest trial of each tool, {on_split(split)}", pad=14)
     ax.legend(ncols=4, loc="upper center", bbox_to_anchor=(0.5, -0.2), frameon=False)
     save_figure(out, fig)
     close(fig)
 
 
-def per_tool_bars(per_tool: dict[str, pd.DataFrame], out: Path, *, looks: dict[str, Variant]) -> None:
+def per_tool_bars(per_tool: dict[str, pd.DataFrame], out: Path, *, looks: dict[str, Variant], split: str) -> None:
     """Fig. 7: mean |error| per tool with its std, one bar per variant."""
     variants = list(per_tool)
     tools = sorted(set().union(*(set(t["tool"]) for t in per_tool.values())))
@@ -88,13 +96,13 @@ def per_tool_bars(per_tool: dict[str, pd.DataFrame], out: Path, *, looks: dict[s
                yerr=t["std_abs_error"], capsize=2, color=_colour(looks, v), label=_label(looks, v))
     ax.set_xticks(range(len(tools)), [t.replace("_", " ") for t in tools])
     ax.set_ylabel("|error| (N), mean ± std")
-    ax.set_title("Error per tool")
+    ax.set_title(f"Error per tool, {on_split(split)}")
     ax.legend(fontsize=7)
     save_figure(out, fig)
     close(fig)
 
 
-def window_heatmap(per_window: dict[str, pd.DataFrame], out: Path, *, looks: dict[str, Variant]) -> None:
+def window_heatmap(per_window: dict[str, pd.DataFrame], out: Path, *, looks: dict[str, Variant], split: str) -> None:
     """Fig. 8: MAE per force window (columns) and variant (rows), with the frame counts."""
     variants = list(per_window)
     windows = list(per_window[variants[0]]["window"].astype(str))
@@ -112,13 +120,15 @@ def window_heatmap(per_window: dict[str, pd.DataFrame], out: Path, *, looks: dic
     ax.set_xticks(range(len(windows)), [f"{w}\nn={c}" for w, c in zip(windows, counts)], fontsize=7)
     ax.set_yticks(range(len(variants)), [_label(looks, v) for v in variants])
     fig.colorbar(im, ax=ax, label="MAE (N)")
-    ax.set_title("Error per force window (test set)")
+    ax.set_title(f"Error per force window, {on_split(split)}")
     save_figure(out, fig)
     close(fig)
 
 
-def regression_grid(preds: dict[str, pd.DataFrame], metrics: dict[str, dict], label: str, out: Path, *, looks: dict[str, Variant]) -> None:
-    """Fig. 9/10: predicted against true force per variant, with R², MAE and the fitted line."""
+def regression_grid(preds: dict[str, pd.DataFrame], metrics: dict[str, dict], label: str, out: Path, *,
+                    looks: dict[str, Variant], split: str) -> None:
+    """Fig. 9/10: predicted against true force per variant, with R², MAE and the fitted line of the
+    split (``metrics``: each variant's scores on it)."""
     variants = list(preds)
     cols = 2 if len(variants) > 1 else 1
     rows = int(np.ceil(len(variants) / cols))
@@ -137,6 +147,7 @@ def regression_grid(preds: dict[str, pd.DataFrame], metrics: dict[str, dict], la
         ax.set_ylim(-0.5, hi + 0.5)
     for ax in list(axes.flat)[len(variants):]:
         ax.remove()
+    fig.suptitle(f"Predicted against true force, {on_split(split)}", fontsize=10)
     save_figure(out, fig)
     close(fig)
 

@@ -1,10 +1,15 @@
-"""Tool scene results: metrics.json, tables and the model figures, from the trained runs.
+"""Tool scene results: scores.json, metrics.json, tables and the model figures, from the trained runs.
 
 Runs live in results/<build>/<scene>/models/<run>/ (eval.json, predictions.parquet); their names are
-explained in ``tool/runs.py``. Repeat 0 of the default split is the one the per-run figures and
-the ``variants`` table draw; every score is also reported over all repeats (mean, std, 95 %
-interval), with paired differences between variants and each variant's verdict against the
-baselines that have its information (its params.yaml ``tool_variants`` entry's ``baseline``).
+explained in ``tool/runs.py``. A model's score (``mae``, ``rmse``, ``r2``) is its mean over the
+repeated splits, with the interval beside it (``over_splits``), paired differences between variants
+and each variant's verdict against the baselines that have its information (its params.yaml
+``tool_variants`` entry's ``baseline``). One split, the first (repeat 0 of the default split), is
+what the per-run figures and the ``variants`` table draw: its values sit under ``first_split``,
+named so, and every figure drawn from it names it.
+
+scores.json holds all of it; metrics.json (DVC's metrics: `dvc metrics show`, `dvc exp show`) only
+the headline, each variant's mean scores, so that a comparison of runs fits a terminal.
 """
 
 from __future__ import annotations
@@ -29,7 +34,8 @@ from tactilepipe.tool.runs import run_spec, sweep_run_name
 from tactilepipe.tool.scenes import scene_label
 from tactilepipe.tool.data.splits import parse_split_name
 
-SPLIT_0_KEYS = ("mae", "rmse", "r2", "slope", "intercept", "parameters", "epochs", "depth", "image_size")
+FIRST_SPLIT_KEYS = ("mae", "rmse", "r2", "slope", "intercept")          # scores of one split
+RUN_KEYS = ("parameters", "epochs", "depth", "image_size")                 # the same for every split
 
 
 @dataclass
@@ -115,19 +121,20 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
     scores |= {b: {m: [draw[b][m] for draw in base] for m in verdicts.METRICS} for b in BASELINES}
     summary = {name: verdicts.over_draws(s, ratio) for name, s in scores.items()}
 
-    # --- metrics.json ---------------------------------------------------------------------------
+    # --- scores.json, metrics.json ----------------------------------------------------------------
     metrics = {}
     for v in variants:
         e0 = evals[plan.repeats[v][0]]
         own = [looks[v].baseline, "mean_predictor"]
         against = {b: verdicts.versus(scores[v], scores[b], ratio) for b in own}
-        metrics[v] = {k: e0[k] for k in SPLIT_0_KEYS} | {"per_split": scores[v], "over_splits": summary[v]}
+        metrics[v] = _mean_scores(summary[v]) | {k: e0[k] for k in RUN_KEYS} | {
+            "first_split": _first_split(split_names[0], e0), "per_split": scores[v], "over_splits": summary[v]}
         if v != "full" and "full" in scores:
             metrics[v]["minus_full"] = verdicts.minus(scores[v], scores["full"], ratio)
         metrics[v] |= {"like_for_like_baseline": looks[v].baseline, "versus_baselines": against,
                        "beats_baselines": all(a["beats"] for a in against.values())}
-    metrics["baselines"] = {b: {m: base[0][b][m] for m in verdicts.METRICS} | {"per_split": scores[b],
-                                                                             "over_splits": summary[b]}
+    metrics["baselines"] = {b: _mean_scores(summary[b]) | {"first_split": _first_split(split_names[0], base[0][b]),
+                                                           "per_split": scores[b], "over_splits": summary[b]}
                             for b in BASELINES}
     rows, text = verdicts.order_by_mae({v: scores[v] for v in variants}, ratio)
     metrics["ablation_order_by_mae"] = [r["method"] for r in rows]
@@ -140,10 +147,9 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
         metrics["full_versus_baseline"] = verdicts.judge("full", looks["full"].baseline, scores, margin, ratio)
     metrics["beats_baselines"] = {v: metrics[v]["beats_baselines"] for v in variants}
     metrics["every_variant_beats_baselines"] = all(metrics["beats_baselines"].values())
-    metrics["split"] = split_names[0]
+    metrics["first_split"] = {"split": split_names[0], "test_pairs": int(len(splits[0]["test"]))}
     metrics["splits"] = split_names
     metrics["repeats"] = k_repeats
-    metrics["test_pairs"] = int(len(splits[0]["test"]))
     metrics["test_pairs_per_split"] = [len(s["test"]) for s in splits]
     metrics["test_train_ratio"] = ratio
     if plan.loto:
@@ -153,7 +159,8 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
         loto_ratio = float(np.mean([len(s["test"]) / len(s["train"]) for s in loto_splits]))
         metrics["loto"] = {"per_tool": per_tool, "over_tools": {
             m: interval([p[m] for p in per_tool.values()], test_train_ratio=loto_ratio) for m in verdicts.METRICS}}
-    write_json(scene_dir / "metrics.json", metrics)
+    write_json(scene_dir / "scores.json", metrics)
+    write_json(scene_dir / "metrics.json", headline(metrics, variants))
 
     # --- tables ---------------------------------------------------------------------------------
     split0_rows = []
@@ -163,7 +170,7 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
                             "slope": e["slope"], "intercept (N)": e["intercept"], "train (s)": e.get("train_s", np.nan),
                             "latency (ms)": e.get("latency_ms", np.nan), "parameters": e.get("parameters", 0)})
     write_table(pd.DataFrame(split0_rows), tables / "variants",
-                f"{scene}: test set of the '{split_names[0]}' split ({len(splits[0]['test'])} frame pairs)", "{:.4f}")
+                f"{scene}: test set of the first split, '{split_names[0]}' ({len(splits[0]['test'])} frame pairs)", "{:.4f}")
     write_table(_interval_table(summary), tables / "intervals",
                 f"{scene}: over {k_repeats} repeats of the '{split_names[0]}' split (own trials and model seed each), "
                 "mean ± std and 95 % interval (Nadeau-Bengio corrected)", "{:.3f}")
@@ -181,9 +188,11 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
                    ignore_index=True)
     pw = pd.concat([pd.DataFrame(evals[plan.repeats[v][0]]["per_window"]).assign(model=v) for v in variants],
                    ignore_index=True)
-    write_table(pt[["model", "tool", "mae", "std_abs_error", "n"]], tables / "per_tool", "|error| per tool (N)", "{:.3f}")
+    on_first = f"test set of the first split, '{split_names[0]}'"
+    write_table(pt[["model", "tool", "mae", "std_abs_error", "n"]], tables / "per_tool",
+                f"|error| per tool (N), {on_first}", "{:.3f}")
     write_table(pw[["model", "window", "mae", "std_abs_error", "n"]], tables / "per_window",
-                "|error| per force window (N), with frame counts", "{:.3f}")
+                f"|error| per force window (N), with frame counts, {on_first}", "{:.3f}")
     every = pd.DataFrame([{"run": r, "variant": evals[r]["variant"], "split": evals[r]["split"],
                            "depth": evals[r]["depth"], "image_size": evals[r]["image_size"], "mae": evals[r]["mae"],
                            "r2": evals[r]["r2"], "train_s": evals[r]["train_s"], "latency_ms": evals[r]["latency_ms"],
@@ -196,14 +205,17 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
     write_json(scene_dir / "runtime.json", {r: {"train_s": float(evals[r]["train_s"]),
                                                 "latency_ms": float(evals[r]["latency_ms"])} for r in runs})
 
-    # --- figures: the paper's Figs. 5-8 and 9 (normal) / 10 (shear), on repeat 0 ------------------
+    # --- figures: the paper's Figs. 5-8 and 9 (normal) / 10 (shear), on the first split -------------
     p0 = {v: preds[plan.repeats[v][0]] for v in variants}
     e0 = {v: evals[plan.repeats[v][0]] for v in variants}
-    fm.sorted_predictions(p0["full"], label, figs / "sorted_predictions.png")
-    fm.over_time(p0, label, figs / "over_time.png", looks=looks)
-    fm.per_tool_bars({v: pd.DataFrame(e0[v]["per_tool"]) for v in variants}, figs / "per_tool.png", looks=looks)
-    fm.window_heatmap({v: pd.DataFrame(e0[v]["per_window"]) for v in variants}, figs / "window_heatmap.png", looks=looks)
-    fm.regression_grid(p0, e0, label, figs / "regression.png", looks=looks)
+    first = split_names[0]
+    fm.sorted_predictions(p0["full"], label, figs / "sorted_predictions.png", split=first)
+    fm.over_time(p0, label, figs / "over_time.png", looks=looks, split=first)
+    fm.per_tool_bars({v: pd.DataFrame(e0[v]["per_tool"]) for v in variants}, figs / "per_tool.png", looks=looks,
+                     split=first)
+    fm.window_heatmap({v: pd.DataFrame(e0[v]["per_window"]) for v in variants}, figs / "window_heatmap.png",
+                      looks=looks, split=first)
+    fm.regression_grid(p0, e0, label, figs / "regression.png", looks=looks, split=first)
     fm.pareto(every, figs / "error_vs_runtime.png", looks=looks)
     fm.interval_bars(scores, summary, label, figs / "intervals.png", looks=looks)
     if plan.loto:
@@ -219,6 +231,23 @@ def _orderings_table(metrics: dict) -> pd.DataFrame:
         table[col] = table[col].astype("Int64")
     table["excludes_zero"] = table["excludes_zero"].map({True: "yes", False: "no"})
     return table
+
+
+def _mean_scores(over_splits: dict[str, dict]) -> dict[str, float]:
+    """A model's scores: the mean of each over the repeated splits (its interval is in over_splits)."""
+    return {m: over_splits[m]["mean"] for m in verdicts.METRICS}
+
+
+def _first_split(name: str, e: dict) -> dict:
+    """One split's scores, under a key that says which: the split the figures and the variants table draw."""
+    return {"split": name} | {k: e[k] for k in FIRST_SPLIT_KEYS}
+
+
+def headline(scores: dict, variants: list[str]) -> dict:
+    """metrics.json, DVC's metrics: each variant's mean scores over the repeated splits and their
+    count. The intervals, the first split, the baselines and the verdicts are in scores.json: each
+    metric is a column of `dvc metrics show` and `dvc exp show`, and all of them buried the scores."""
+    return {v: {m: scores[v][m] for m in verdicts.METRICS} for v in variants} | {"repeats": scores["repeats"]}
 
 
 def _interval_table(summary: dict[str, dict]) -> pd.DataFrame:
