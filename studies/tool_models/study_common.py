@@ -15,7 +15,9 @@ import numpy as np
 from tactilepipe.core.config import load_params
 from tactilepipe.tool.model.evaluate import linear_fit_predictions, summarise, tactile_rmse_features
 from tactilepipe.tool.data.loader import ToolFrames
+from tactilepipe.tool.model.kernels import use_kernels
 from tactilepipe.tool.model.run import train_and_predict
+from tactilepipe.tool.model.variants import Architecture
 from tactilepipe.tool.scenes import TOOL_SCENES, scene_label
 
 REPO = Path(__file__).resolve().parents[2]
@@ -32,6 +34,7 @@ def study_arguments(description: str) -> argparse.ArgumentParser:
 @dataclass
 class Scene:
     tool_train: dict        # params.yaml tool_train at default scale: the workflow's training settings
+    variants: dict          # params.yaml tool_variants: each variant's architecture
     seed: int               # params.yaml seed: the workflow's split and model seed
     dir: Path
     label: str
@@ -41,10 +44,11 @@ class Scene:
 
 def load_scene(args: argparse.Namespace) -> Scene:
     params = load_params(REPO / "params.yaml", {"scale": "default"})
+    use_kernels(params["tool_train"]["kernels"])      # as the workflow's training stage, before torch loads
     scene_dir = args.scene_dir or REPO / "results" / "default" / args.scene
     label = scene_label(args.scene)
     data = ToolFrames(scene_dir / "data", label)
-    return Scene(params["tool_train"], params["seed"], scene_dir, label, data,
+    return Scene(params["tool_train"], params["tool_variants"], params["seed"], scene_dir, label, data,
                  tactile_rmse_features(data.frames, data.references, data.trial_index))
 
 
@@ -62,6 +66,7 @@ def train_on(scene_name: str, scene: Scene, split: dict, out: Path, variant: str
     split_path.write_text(json.dumps(split))
     out.mkdir()
     t0 = time.perf_counter()
-    r = train_and_predict(scene_name, scene.dir / "data", split_path, out, variant, tool_train["depth"],
-                          tool_train["image_size"], tool_train, scene.seed, progress=False)
+    run = {"name": variant, "split": split["name"], "depth": tool_train["depth"], "image_size": tool_train["image_size"],
+           "variant": {"name": variant, **Architecture.from_dict(scene.variants[variant]).as_dict()}}
+    r = train_and_predict(scene_name, scene.dir / "data", split_path, out, run, tool_train, scene.seed, progress=False)
     return r, time.perf_counter() - t0
