@@ -178,6 +178,19 @@ def test_changing_a_model_parameter_reruns_only_what_depends_on_it(smoke_build: 
     out = snakemake(wd, "-n", "--config", "scale=smoke").stdout
     planned = set(re.findall(r"^(?:local)?rule (\w+):$", out, flags=re.M)) - {"all"}   # job headers, not file lists
     assert planned == {"volume_baseline", "volume_report"}, planned
+    # `tactilepipe why` names the jobs and the key that moved, with no Snakemake output to read
+    why = run([str(BIN / "tactilepipe"), "why", f"{SMOKE}/volume/metrics.json"], wd).stdout
+    assert f"{SMOKE}/volume/metrics.json: 2 job(s) would run" in why, why
+    assert "volume_baseline x1:" in why and "parameters changed (volume-baseline: baseline.mu_min 0.1 -> 0.12)" in why, why
+    assert "volume_report x1: Input files updated by another job" in why, why
+
+
+def test_why_says_when_and_why_an_up_to_date_output_was_made(smoke_build: Path):
+    why = run([str(BIN / "tactilepipe"), "why", f"{SMOKE}/tool_normal/models/full/eval.json"], smoke_build).stdout
+    assert f"{SMOKE}/tool_normal/models/full/eval.json: up to date; last made " in why, why
+    assert "by rule tool_train (scene=tool_normal, run=full)" in why and "because: Missing output files" in why, why
+    bad = run([str(BIN / "tactilepipe"), "why", "results/nowhere.txt"], smoke_build, check=False)
+    assert bad.returncode != 0 and "results/nowhere.txt: Snakemake cannot plan it" in bad.stderr, bad.stderr
 
 
 def test_a_nested_config_override_is_typed_as_params_yaml_has_it(smoke_build: Path, tmp_path: Path):
