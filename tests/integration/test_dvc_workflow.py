@@ -157,7 +157,9 @@ def take_in_session(repo: dict, scene: str, session: str, simulate_flags: list[s
     planned = snakemake(wd, "-n")
     planned_stages = ran_stages(dvc_out(wd, "repro", "--dry"))
     out = dvc_out(wd, "repro")
-    taken = {"out": out, "planned": job_counts(planned.stdout + planned.stderr), "planned_stages": planned_stages,
+    # a dry run prints its job stats twice (before and after the job list): the first table is the plan
+    plan = (planned.stdout + planned.stderr).split("Job stats:")[1]
+    taken = {"out": out, "planned": job_counts(plan), "planned_stages": planned_stages,
              "diff": json.loads(dvc(wd, "metrics", "diff", "--json").stdout),
              "diff_md": dvc(wd, "metrics", "diff", "--md").stdout}
     # each scene's metrics travel with its provenance and run times, and the rules' parameter stamps
