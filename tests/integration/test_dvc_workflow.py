@@ -154,7 +154,7 @@ def take_in_session(repo: dict, scene: str, session: str, simulate_flags: list[s
     params = (wd / "params.yaml").read_text()
     assert param_line in params
     (wd / "params.yaml").write_text(params.replace(param_line, new_param_line))
-    planned = snakemake(wd, "-n")
+    planned = snakemake(wd, "-n", "--workflow-profile", "workflow/profiles/default")   # as DVC's stages run it
     planned_stages = ran_stages(dvc_out(wd, "repro", "--dry"))
     out = dvc_out(wd, "repro")
     # a dry run prints its job stats twice (before and after the job list): the first table is the plan
@@ -450,7 +450,7 @@ VOLUME_ALL = {"volume_simulate", "papillarray_ingest", "volume_dataset", "volume
 TOOL_DATA_ON = {"tool_ingest", "tool_clock_figure", "tool_dataset", "tool_split", "tool_data_report", "tool_train",
                 "tool_model_report"}
 EDITS = [   # (module, snakemake rules planned, DVC stages out of date, an output the edit must rewrite)
-    ("volume/report.py", {"volume_report"}, {"volume"}, f"{SMOKE}/volume/metrics.json"),
+    ("volume/report.py", {"volume_report"}, {"volume"}, f"{SMOKE}/volume/scores.json"),
     ("drift/analyse.py", {"drift_report"}, {"drift"}, f"{SMOKE}/drift/fits.csv"),
     # planned only (None: no repro, which the cases above show; these would re-run what they did,
     # a simulator or whole scenes). A study's CLI module is in its own stages' code only: a drift
@@ -482,7 +482,7 @@ def test_editing_a_module_reruns_exactly_the_rules_that_run_it(repo, new_session
     wd = repo["wd"]
     path = wd / "src/tactilepipe" / module
     original, before_edit = path.read_text(), path.stat()
-    if module == "volume/report.py":          # a real change: one more key in metrics.json
+    if module == "volume/report.py":          # a real change: one more key in scores.json
         assert original.count('        "scale": p["scale"],') == 1
         path.write_text(original.replace('        "scale": p["scale"],', '        "scale": p["scale"],\n        "edited": 1,'))
     else:                                     # a comment counts too (conservative, never stale)
