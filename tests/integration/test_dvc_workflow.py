@@ -58,6 +58,14 @@ def job_counts(out: str) -> dict[str, int]:
     return counts
 
 
+TARGET_RULES = {"all", "volume", "drift", "tool_data", "tool_normal", "tool_shear"}   # rules that only name files
+
+
+def work(counts: dict[str, int]) -> dict[str, int]:
+    """The jobs that do work: `snakemake -n` plans the default target `all`, a DVC stage its scene's rule."""
+    return {rule: n for rule, n in counts.items() if rule not in TARGET_RULES}
+
+
 def tracked_files(wd: Path) -> dict[str, bytes]:
     """Every file under raw/ and results/ (the logs and the resume checkpoints last.pt are not
     artefacts: not tracked, not shared)."""
@@ -189,7 +197,7 @@ def test_new_session_reruns_only_the_volume_stage_and_ingests_only_new_bags(repo
     wd, out = repo["wd"], new_session["out"]
     assert ran_stages(out) == {"volume"} == new_session["planned_stages"], out[-3000:]
     # both tools plan the same work: the jobs `snakemake -n` planned are the jobs `dvc repro` ran
-    assert job_counts(out) == new_session["planned"], (job_counts(out), new_session["planned"])
+    assert work(job_counts(out)) == work(new_session["planned"]), (job_counts(out), new_session["planned"])
     for stage in set(STAGES) - {"volume"}:
         assert f"Stage '{stage}' didn't change, skipping" in out, stage
     counts = job_counts(out)
@@ -229,7 +237,7 @@ def new_tool_session(repo, new_session) -> dict:
 def test_new_tool_session_reruns_only_the_tool_stages_and_ingests_only_new_trials(repo, new_tool_session):
     wd, out = repo["wd"], new_tool_session["out"]
     assert ran_stages(out) == {"tool_data", "tool_models"} == new_tool_session["planned_stages"], out[-3000:]
-    assert job_counts(out) == new_tool_session["planned"], (job_counts(out), new_tool_session["planned"])
+    assert work(job_counts(out)) == work(new_tool_session["planned"]), (job_counts(out), new_tool_session["planned"])
     for stage in set(STAGES) - {"tool_data", "tool_models"}:
         assert f"Stage '{stage}' didn't change, skipping" in out, stage
     counts = job_counts(out)
@@ -261,7 +269,7 @@ def new_drift_session(repo, new_session) -> dict:
 def test_new_drift_session_reruns_only_the_drift_stage(repo, new_drift_session):
     wd, out = repo["wd"], new_drift_session["out"]
     assert ran_stages(out) == {"drift"} == new_drift_session["planned_stages"], out[-3000:]
-    assert job_counts(out) == new_drift_session["planned"], (job_counts(out), new_drift_session["planned"])
+    assert work(job_counts(out)) == work(new_drift_session["planned"]), (job_counts(out), new_drift_session["planned"])
     counts = job_counts(out)
     assert new_drift_session["n_new"] >= 7
     assert counts["papillarray_ingest"] == new_drift_session["n_new"], counts
