@@ -119,3 +119,15 @@ def test_a_margin_wider_than_a_tenth_of_the_full_models_mae_is_refused():
     assert load_params()["tool_report"]["equivalence_margin"] == 0.1
     with pytest.raises(ConfigError, match=r"at 'tool_report.equivalence_margin': 0.2 is greater than the maximum of 0.1"):
         load_params(overrides={"tool_report": {"equivalence_margin": 0.2}})
+
+
+
+def test_the_power_line_is_safe_in_a_markdown_table_cell():
+    """The power line is a cell of paper_orderings.md: a '|' in it would split the row."""
+    from tactilepipe.core.intervals import paired_difference
+    from tactilepipe.tool.report.verdicts import power_line
+    undecided = [[0.05, -0.3, 0.4, -0.2, 0.3, -0.35, 0.1, 0.2],        # the floor leaves no room
+                 [0.9, -0.3, 1.1, -0.2, 0.8, -0.1, 0.7, 0.0]]          # the mean is outside the margin
+    lines = [power_line(paired_difference(b, [0.0] * 8, test_train_ratio=0.25), 0.1, 0.25)["power"] for b in undecided]
+    assert "the floor" in lines[0] and "outside the margin" in lines[1], lines
+    assert all("|" not in line for line in lines), lines

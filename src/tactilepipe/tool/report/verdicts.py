@@ -115,16 +115,16 @@ def power_line(d: dict, margin: float, test_train_ratio: float) -> dict:
     floor = half_width(std, math.inf, level, test_train_ratio)
     parts = [f"K = {to_order} would exclude 0 at the observed mean" if to_order else
              f"no K excludes 0: the floor ±{floor:.3g} N (n_test/n_train = {test_train_ratio:.3g}) "
-             f"exceeds |mean| {abs(mean):.3g} N"]
+             f"exceeds the mean difference {abs(mean):.3g} N"]
     if not math.isfinite(margin):
         parts.append("equivalence not judged: no full model to set the margin")
     elif to_equivalence:
         parts.append(f"K = {to_equivalence} would show equivalence within ±{margin:.3g} N")
     elif room <= 0:
-        parts.append(f"no K shows equivalence: |mean| {abs(mean):.3g} N is outside the margin ±{margin:.3g} N")
+        parts.append(f"no K shows equivalence: the mean difference {abs(mean):.3g} N is outside the margin ±{margin:.3g} N")
     else:
         parts.append(f"no K shows equivalence: the floor ±{floor:.3g} N exceeds the room {room:.3g} N "
-                     "between |mean| and the margin")
+                     "between the mean difference and the margin")
     return {"repeats_to_order": to_order, "repeats_to_equivalence": to_equivalence, "power": "; ".join(parts)}
 
 
