@@ -135,10 +135,10 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_build: Path):
 
 def test_every_ordering_verdict_follows_its_stored_interval_and_margin(smoke_build: Path):
     """Each judged ordering of the smoke build (and the full model against its like-for-like
-    baseline) carries the verdict its interval and margin give, in metrics.json and in the table."""
+    baseline) carries the verdict its interval and margin give, in scores.json and in the table."""
     from tactilepipe.core.intervals import half_width
     for scene in ("tool_normal", "tool_shear"):
-        tm = json.loads((results(smoke_build) / f"{scene}/metrics.json").read_text())
+        tm = json.loads((results(smoke_build) / f"{scene}/scores.json").read_text())
         margin = tm["equivalence_margin"]["n"]
         assert tm["equivalence_margin"]["fraction_of_full_mae"] == 0.1
         assert margin == pytest.approx(0.1 * tm["full"]["over_splits"]["mae"]["mean"])
