@@ -71,14 +71,17 @@ def train(args, scene: str, variant: str, k: int, m: int) -> Path:
     return out
 
 
-def baseline_errors(args, scene: str, k: int) -> pd.Series:
-    """|error| of the tactile-RMSE linear fit on split k's test rows, by sample index (deterministic: no seed)."""
+def baseline_errors(args, scene: str, splits: list[dict]) -> list[pd.Series]:
+    """|error| of the tactile-RMSE linear fit on each split's test rows, by sample index
+    (deterministic: no seed). The frames are read and their features computed once per scene."""
     data = ToolFrames(args.build_dir / scene / "data", scene_label(scene))
-    split = json.loads((args.build_dir / scene / "splits" / f"{split_name(k)}.json").read_text())
     features = tactile_rmse_features(data.frames, data.references, data.trial_index)
-    test = np.asarray(split["test"])
-    pred = linear_fit_predictions(data.labels, features, split)
-    return pd.Series(np.abs(pred - data.labels[test]), index=test)
+    errors = []
+    for split in splits:
+        test = np.asarray(split["test"])
+        pred = linear_fit_predictions(data.labels, features, split)
+        errors.append(pd.Series(np.abs(pred - data.labels[test]), index=test))
+    return errors
 
 
 def errors(run_dir: Path) -> pd.DataFrame:
@@ -92,9 +95,9 @@ def study_scene(args, scene: str, pool: ThreadPoolExecutor) -> dict:
             for m in range(args.seeds) for k in range(args.splits) for v in variants}
     runs = {key: errors(job.result()) for key, job in jobs.items()}
     costs = [json.loads((jobs[key].result() / "eval.json").read_text())["train_s"] for key in jobs]
-    base = {k: baseline_errors(args, scene, k) for k in range(args.splits)}
     splits = [json.loads((args.build_dir / scene / "splits" / f"{split_name(k)}.json").read_text())
               for k in range(args.splits)]
+    base = dict(enumerate(baseline_errors(args, scene, splits)))
     ratio = float(np.mean([len(s["test"]) / len(s["train"]) for s in splits]))
     rows = []
     for better, worse in ORDERINGS[scene]:
