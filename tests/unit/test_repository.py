@@ -233,6 +233,15 @@ def test_the_import_audits_find_what_they_look_for():
         f"tactilepipe.tool.formats.c imports tactilepipe.tool.data.d: {LAYER_RULES[1][2]}"]
 
 
+def test_no_two_test_files_share_a_name():
+    # the test folders are not packages: pytest imports each file by its bare name, so a second
+    # file of the same name fails collection of the whole suite
+    seen = {}
+    for path in sorted((REPO / "tests").rglob("test_*.py")):
+        seen.setdefault(path.name, []).append(str(path.relative_to(REPO)))
+    assert not {n: ps for n, ps in seen.items() if len(ps) > 1}
+
+
 def test_library_modules_are_short():
     long = {str(p.relative_to(REPO)): n for p in (REPO / "src").rglob("*.py")
             if (n := len(p.read_text().splitlines())) > 400}
