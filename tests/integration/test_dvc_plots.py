@@ -3,8 +3,9 @@ of every data plot dvc.yaml declares, with the real DVC command line, in a small
 project whose data files the real figure writers made (two commits, different numbers).
 
 The HTML page DVC writes for data plots loads vega, vega-lite and vega-embed from a CDN
-(dvc-render's VegaRenderer): offline it draws the image plots but not the data plots.
-`dvc plots diff --json` gives the filled vega-lite specs with their data offline."""
+(dvc-render's VegaRenderer): offline it draws the image plots but not the data plots. The
+checkout's DVC is pointed at a page template with the libraries inline
+(workflow/scripts/offline_plots.py, run by `make`), which a browser with no network draws."""
 
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ import pandas as pd
 import pytest
 import yaml
 
+from support.browser import OFFLINE, chromium_run
 from support.project import REPO, dvc, git
 from tactilepipe.drift.analyse import fit_models
 from tactilepipe.drift.figures import write_drift_figure
@@ -128,3 +130,26 @@ def test_plots_diff_html_needs_the_cdn_only_for_vega(project):
     assert sorted(re.sub(r"@[\d.]+$", "", u.rsplit("/", 1)[-1]) for u in remote) == ["vega", "vega-embed", "vega-lite"], remote
     assert page.count("vegaEmbed(") == len(data_plots())
     assert "HEAD~1" in page and "\"rev\": \"HEAD\"" in page.replace("'", "\"")
+
+
+def test_with_the_offline_template_a_browser_with_no_network_draws_every_data_plot(project):
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("offline_plots", REPO / "workflow/scripts/offline_plots.py")
+    offline_plots = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(offline_plots)
+    offline_plots.install(project)
+    try:
+        dvc(project, "plots", "diff", "HEAD~1", "HEAD", "-o", "offline_html")
+    finally:
+        dvc(project, "config", "--local", "--unset", "plots.html_template")   # the CDN test above needs DVC's page
+    page = project / "offline_html" / "index.html"
+    text = page.read_text()
+    assert not re.findall(r"(?:src|href)=\"https?://", text)
+    assert text.count("vegaEmbed(") == len(data_plots())
+    dom = chromium_run(page, *OFFLINE, "--dump-dom")
+    drawn = re.sub(r"<(script|style)\b.*?</\1>", "", dom, flags=re.S)     # the page as drawn, not its code
+    # vega-embed marks each container it drew into and puts the chart's SVG in it; a page whose
+    # libraries did not load keeps bare divs
+    assert len(re.findall(r'<div id="[^"]+" class="vega-embed', drawn)) == len(data_plots()), drawn[:2000]
+    assert drawn.count('class="marks"') == len(data_plots())
+    assert ">HEAD~1<" in drawn and ">HEAD<" in drawn          # both revisions in the legends

@@ -6,42 +6,17 @@ installs it, elsewhere the rendering test skips without it)."""
 from __future__ import annotations
 
 import json
-import os
 import re
-import shutil
-import subprocess
-import tempfile
 from html import unescape
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from support.browser import chromium_run as _chromium_run
 from support.project import snakemake
 
 pytestmark = pytest.mark.integration
-
-# Headless in a closed network as root: no sandbox, no background or update connections.
-CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                  "--hide-scrollbars", "--virtual-time-budget=10000"]
-
-
-def _chromium() -> str:
-    path = shutil.which("chromium") or shutil.which("chromium-browser")
-    if path is None:
-        if os.environ.get("CI"):
-            pytest.fail("chromium is missing: .ci/run installs it for the report test")
-        pytest.skip("chromium is not installed (apt-get install chromium): the report's rendering test needs it")
-    return path
-
-
-def _chromium_run(page: Path, *args: str) -> str:
-    with tempfile.TemporaryDirectory() as profile:
-        return subprocess.run([_chromium(), *CHROMIUM_FLAGS, f"--user-data-dir={profile}", *args,
-                               page.resolve().as_uri()], capture_output=True, text=True, timeout=240,
-                              check=True).stdout
-
 
 # Measured in the browser: where the landing page's title and Table 1 sit in the window once the
 # report has drawn itself, written on <body> for --dump-dom to carry out.
