@@ -74,6 +74,8 @@ def _cal(base):
 FAULTS = {
     "zero offset +1 N": (lambda t, b: chain_fault.zero_offset(t, _cal(b), 1.0), "witness 'rest at both ends'"),
     "zero offset -1 N": (lambda t, b: chain_fault.zero_offset(t, _cal(b), -1.0), "witness 'rest at both ends'"),
+    "zero drifting +1 N within the trial": (lambda t, b: fault.drift(t, _cal(b), 1.0), "witness 'zero drift'"),
+    "zero drifting -1 N within the trial": (lambda t, b: fault.drift(t, _cal(b), -1.0), "witness 'zero drift'"),
     "arrival stamps 0.2 s late": (lambda t, b: fault.arrivals_late(t, 0.2), "witness 'clock'"),
     "port-open stamp 0.3 s late, no arrival stamps": (lambda t, b: fault.port_open_late(t, 0.3), None),
     "another trial's samples": (lambda t, b: fault.samples_of(t, t.parent / OTHER), "witness '(clock|images)'"),

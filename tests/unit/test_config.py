@@ -306,6 +306,19 @@ def test_a_model_input_larger_than_the_stored_frames_is_refused(params_path):
         load_params(params_path, {"scale": "default", "tool_train": {"sweep": [{"depth": 18, "image_size": 128}]}})
 
 
+def test_portable_kernels_on_more_threads_or_a_gpu_are_refused_before_any_job(params_path):
+    # the workflow validates params.yaml with every study's checks at its start, so `snakemake -n`
+    # refuses these instead of every training or estimating job failing
+    for group, extra in (("tool_train", {}), ("predict", {})):
+        with pytest.raises(ConfigError, match=rf"{group}.num_threads 2 with kernels: portable"):
+            load_params(params_path, {"scale": "default", group: {"kernels": "portable", "num_threads": 2, **extra}})
+    with pytest.raises(ConfigError, match=r"tool_train.kernels: portable pins CPU kernels, but the run is on cuda"):
+        load_params(params_path, {"scale": "default", "tool_train": {"kernels": "portable", "device": "cuda"}})
+    ok = load_params(params_path, {"scale": "default", "tool_train": {"kernels": "native", "num_threads": 2,
+                                                                      "device": "cuda"}})
+    assert ok["tool_train"]["num_threads"] == 2
+
+
 def test_a_stage_under_the_workflow_takes_its_values_from_its_stamp(tmp_path, capsys, monkeypatch):
     """The values a job receives are its stamp's, not params.yaml's; a stamp of another stage, or
     --stamp with --override, is refused in one line."""

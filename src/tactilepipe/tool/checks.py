@@ -1,5 +1,6 @@
 """The tool study's cross-key parameter checks: the model's input size against the stored frames,
-the variants the runs can name and the network can build, the split's fractions.
+the variants the runs can name and the network can build, the split's fractions, the kernels
+against the threads and device they run on.
 
 Here, not in core/config.py, so that editing them re-runs the tool stages only (the code a stage
 runs is an input of its rule: pipeline/codedeps.py). A tool stage run by hand runs them (its
@@ -23,6 +24,25 @@ def check(p: dict, source: str) -> None:
     _check_variants(p["tool_variants"], p["tool_train"]["variants"], source)
     if abs(sum(p["tool_split"]["fractions"]) - 1.0) > 1e-6:
         raise ConfigError(f"{source}: tool_split.fractions must sum to 1 (got {p['tool_split']['fractions']})")
+    for group in ("tool_train", "predict"):
+        g = p[group]
+        why = kernels_conflict(group, g["kernels"], g["num_threads"], g.get("device"))
+        if why:
+            raise ConfigError(f"{source}: {why}")
+
+
+def kernels_conflict(group: str, kernels: str, num_threads: int | None, device: str | None = None) -> str | None:
+    """Why kernels ``kernels`` cannot run on ``num_threads`` threads on ``device`` (None: they can).
+    Portable kernels give the same bytes on every x86 CPU by running on one CPU thread. The one
+    statement of the rule: params.yaml is checked with it before any job, training and the
+    estimator with it again on the settings they are given."""
+    if kernels == "portable" and num_threads not in (None, 1):
+        return (f"{group}.num_threads {num_threads} with kernels: portable, which runs on one thread (the bytes of "
+                f"a model depend on the thread count): set num_threads: 1, or kernels: native")
+    if kernels == "portable" and device not in (None, "auto", "cpu"):
+        return (f"{group}.kernels: portable pins CPU kernels, but the run is on {device}: set kernels: native for "
+                f"a GPU run")
+    return None
 
 
 def _check_variants(variants: dict, chosen, source: str) -> None:

@@ -35,6 +35,9 @@ class IngestWitness(Group):
                                                     "(meta.json) and the one the stamps show")
     rest_frames: int = Field(ge=1, le=1000, description="frames at each end of a trial where it rests")
     rest_n: float = Field(gt=0, le=100, description="N: |F| allowed at rest, at each end of a trial")
+    rest_change_frac: float = Field(ge=0, le=1, description="the images show a finger at rest where its change "
+                                                            "from the reference is within this fraction of its "
+                                                            "5-95 % range over the trial (zero drift)")
     loaded_n: float = Field(gt=0, le=100, description="N: |F| from which a label counts as loaded (direction)")
     min_normal_share: float = Field(ge=0, le=1, description="median share of |F| that Fz carries while loaded")
     min_image_score: float = Field(ge=-1, le=1, description="correlation of tactile change and |F| at the labels' "

@@ -15,6 +15,9 @@ tolerances in tool_ingest.witness):
   protocol rests, is zero within a tolerance at one end at least, whichever way it is off (a zero
   taken under a pull lifts every label; one taken under load lowers them; a recording that stops
   mid-press reads a load at its end only).
+- zero drift: one end rests and the other reads a load that both fingers' images do not show
+  (back within a tenth of their change at the press): the zero crept within the trial. A
+  recording that stops mid-press shows its load in the images, and is kept.
 - direction: while loaded, Fz carries most of |F| in both kinds of trial (a press, or a slide
   under a normal load with friction below 1): Fx/Fz swapped in nano17.cal leave Fz near 0.
 - gauge wire: when the direction is wrong and the gauge a press moves most (from the
@@ -203,7 +206,8 @@ def label_witness(witness: dict, evidence: dict, frames: dict, grays: dict, forc
             jumped.items()) + (f" (at most tool_ingest.witness.max_brightness_step_dn {tol['max_brightness_step_dn']:g}; "
                                f"contact moves it under 3): an exposure or LED change, which the images would "
                                f"show the model as a change of force")
-    fits = {name: _image_fit(change_signal(grays[name]), np.linalg.norm(at[name], axis=1)) for name in frames}
+    changes = {name: change_signal(grays[name]) for name in frames}
+    fits = {name: _image_fit(changes[name], np.linalg.norm(at[name], axis=1)) for name in frames}
     r, gain = (float(np.nanmean([f[i] for f in fits.values()])) if any(np.isfinite(f[i]) for f in fits.values())
                else float("nan") for i in range(2))
     metrics.update({"image_score": round(r, 4), "image_gain": round(gain, 4), "clock_trusted": clock_trusted})
@@ -212,12 +216,31 @@ def label_witness(witness: dict, evidence: dict, frames: dict, grays: dict, forc
     snr = max(image_snr(grays[name]) for name in frames)
     metrics["image_snr"] = round(snr, 2)
     metrics["images_judge"] = bool(snr >= tol["min_image_snr"])    # their gain and lag are compared only then
+    if clock_trusted and snr >= tol["min_image_snr"]:
+        _zero_drift(metrics, failed, changes, k, tol)
     if clock_trusted and snr >= tol["min_image_snr"] and np.isfinite(r) and r < tol["min_image_score"]:
         failed["images"] = (
             f"the tactile change follows |F| with correlation {r:.2f} at the labels' clock (at least "
             f"{tol['min_image_score']:g}: tool_ingest.witness.min_image_score): the labels are not of these frames "
             f"(a clock or frame-rate error pairs rest frames with loaded forces)")
     return {"metrics": metrics, "failed": failed}
+
+
+def _zero_drift(metrics: dict, failed: dict, changes: dict, k: int, tol: dict) -> None:
+    """The zero crept within the trial: it rests at its start (where the zero was taken) and reads a
+    load at its end that the images do not show, both fingers back at rest there."""
+    def at_end(change: np.ndarray) -> float:
+        lo, hi = np.percentile(change, [5, 95])
+        return float((np.median(change[-k:]) - lo) / (hi - lo)) if hi > lo else float("nan")
+    frac = max(at_end(c) for c in changes.values())          # at rest only when every finger is
+    metrics["end_change_frac"] = round(frac, 4)
+    start, end = metrics["rest_start_n"], metrics["rest_end_n"]
+    if start <= tol["rest_n"] < end and frac <= tol["rest_change_frac"]:
+        failed["zero drift"] = (
+            f"|F| reads {end:.2f} N over the {k} last frames (and on the force log beyond them) and "
+            f"{start:.2f} N over the {k} first, while both fingers' images are back at rest there ({frac:.0%} of "
+            f"their change at the press; tool_ingest.witness.rest_change_frac {tol['rest_change_frac']:g}): the "
+            f"Nano17's zero drifted by about {end:.2f} N within the trial (temperature, a cable moving)")
 
 
 # --- the session comparison (dataset stage) -----------------------------------------------------

@@ -72,11 +72,11 @@ def prepare_process(p: dict) -> None:
     first loads: its wait policy and the kernels. Effective when a command calls this before torch
     is imported (the CLI does); a later call keeps native kernels, and refuses portable ones that
     are not in force."""
+    from tactilepipe.tool.checks import kernels_conflict
     from tactilepipe.tool.model.kernels import use_kernels
     os.environ["OMP_WAIT_POLICY"] = p["predict"]["wait_policy"].upper()
-    if p["predict"]["kernels"] == "portable" and p["predict"]["num_threads"] != 1:
-        raise ConfigError(f"predict.num_threads {p['predict']['num_threads']} with kernels: portable, which runs "
-                          f"on one thread")
+    if why := kernels_conflict("predict", p["predict"]["kernels"], p["predict"]["num_threads"]):
+        raise ConfigError(why)
     use_kernels(p["predict"]["kernels"])
 
 

@@ -33,6 +33,7 @@ from torch.optim.adam import adam as adam_update
 from tactilepipe.core.errors import ConfigError, TactilepipeError
 from tactilepipe.tool.model.checkpoint import (CHECKPOINT_FORMAT, data_fingerprint, load_checkpoint, save_checkpoint,
                                                settings_diff, split_fingerprint, write_history)
+from tactilepipe.tool.checks import kernels_conflict
 from tactilepipe.tool.model.kernels import check_mode, require_active
 from tactilepipe.tool.model.network import build_model, count_parameters
 from tactilepipe.tool.model.train_config import TrainConfig
@@ -153,10 +154,8 @@ def _check_data(data, split: dict, cfg: TrainConfig) -> tuple[np.ndarray, np.nda
     if cfg.lr_schedule not in LR_SCHEDULES:
         raise ConfigError(f"unknown lr_schedule '{cfg.lr_schedule}' (one of {', '.join(LR_SCHEDULES)})")
     check_mode(cfg.kernels)
-    if cfg.kernels == "portable" and cfg.num_threads not in (None, 1):
-        raise ConfigError(f"tool_train.num_threads {cfg.num_threads} with kernels: portable, which runs on one "
-                          f"thread (the bytes of a model depend on the thread count): set num_threads: 1, or "
-                          f"kernels: native")
+    if why := kernels_conflict("tool_train", cfg.kernels, cfg.num_threads):
+        raise ConfigError(why)
     return train_idx, val_idx
 
 
@@ -187,9 +186,8 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
     train_idx, val_idx = _check_data(data, split, cfg)
     # portable kernels are CPU kernels: "auto" takes the CPU even where CUDA is present
     device = resolve_device("cpu" if cfg.kernels == "portable" and cfg.device == "auto" else cfg.device)
-    if cfg.kernels == "portable" and device.type != "cpu":
-        raise ConfigError(f"tool_train.kernels: portable pins CPU kernels, but the run is on {device}: "
-                          f"set kernels: native for a GPU run")
+    if why := kernels_conflict("tool_train", cfg.kernels, cfg.num_threads, device.type):
+        raise ConfigError(why)
     use_amp = bool(cfg.amp) and device.type == "cuda"
     stats = split["label_stats"]
     meta = {"variant": cfg.variant, "architecture": cfg.architecture, "depth": cfg.depth, "image_size": cfg.image_size,
