@@ -15,9 +15,9 @@ tolerances in tool_ingest.witness):
   protocol rests, is zero within a tolerance at one end at least, whichever way it is off (a zero
   taken under a pull lifts every label; one taken under load lowers them; a recording that stops
   mid-press reads a load at its end only).
-- zero drift: one end rests and the other reads a load that both fingers' images do not show
-  (back within a tenth of their change at the press): the zero crept within the trial. A
-  recording that stops mid-press shows its load in the images, and is kept.
+- zero drift: the start rests and the end reads a load that the images do not show (a finger
+  back within a quarter of its change over the trial): the zero crept within the trial. A
+  recording that stops mid-press shows its load in both fingers' images, and is kept.
 - direction: while loaded, Fz carries most of |F| in both kinds of trial (a press, or a slide
   under a normal load with friction below 1): Fx/Fz swapped in nano17.cal leave Fz near 0.
 - gauge wire: when the direction is wrong and the gauge a press moves most (from the
@@ -228,19 +228,23 @@ def label_witness(witness: dict, evidence: dict, frames: dict, grays: dict, forc
 
 def _zero_drift(metrics: dict, failed: dict, changes: dict, k: int, tol: dict) -> None:
     """The zero crept within the trial: it rests at its start (where the zero was taken) and reads a
-    load at its end that the images do not show, both fingers back at rest there."""
-    def at_end(change: np.ndarray) -> float:
+    load at its end that the images do not show. A finger's images are back at rest when their
+    change at the last frames is within ``rest_change_frac`` of its 5-95 % range from the first;
+    one finger back at rest is enough (the simulated grasp can leave the other finger's gel
+    shifted, up to 0.6 of its range in clean trials, and a press that stops loaded loads both)."""
+    def from_start(change: np.ndarray) -> float:
         lo, hi = np.percentile(change, [5, 95])
-        return float((np.median(change[-k:]) - lo) / (hi - lo)) if hi > lo else float("nan")
-    frac = max(at_end(c) for c in changes.values())          # at rest only when every finger is
+        return float((np.median(change[-k:]) - np.median(change[:k])) / (hi - lo)) if hi > lo else float("nan")
+    frac = min(from_start(c) for c in changes.values())
     metrics["end_change_frac"] = round(frac, 4)
     start, end = metrics["rest_start_n"], metrics["rest_end_n"]
     if start <= tol["rest_n"] < end and frac <= tol["rest_change_frac"]:
         failed["zero drift"] = (
             f"|F| reads {end:.2f} N over the {k} last frames (and on the force log beyond them) and "
-            f"{start:.2f} N over the {k} first, while both fingers' images are back at rest there ({frac:.0%} of "
-            f"their change at the press; tool_ingest.witness.rest_change_frac {tol['rest_change_frac']:g}): the "
-            f"Nano17's zero drifted by about {end:.2f} N within the trial (temperature, a cable moving)")
+            f"{start:.2f} N over the {k} first, while the images are back at rest there (a finger's change "
+            f"{frac:+.0%} of its range from the start; tool_ingest.witness.rest_change_frac "
+            f"{tol['rest_change_frac']:g}): the Nano17's zero drifted by about {end:.2f} N within the trial "
+            f"(temperature, a cable moving)")
 
 
 # --- the session comparison (dataset stage) -----------------------------------------------------
