@@ -30,12 +30,13 @@ def page(bundle: str) -> str:
             "<style>\ntable { border-spacing: 15px; }\n</style>\n</head>\n<body>\n{plot_divs}\n</body>\n</html>\n")
 
 
-def install(project: Path) -> Path:
+def install(project: Path) -> Path | None:
+    """The template's path; None (nothing done) outside a DVC project, such as an exported copy."""
     import vl_convert
 
     dvc_dir = project / ".dvc"
     if not dvc_dir.is_dir():
-        raise SystemExit(f"{project}: not a DVC project (no .dvc/)")
+        return None
     out = dvc_dir / TEMPLATE
     tmp = out.with_suffix(".html.tmp")
     tmp.write_text(page(vl_convert.javascript_bundle(vl_version=VEGA_LITE)), encoding="utf-8")
@@ -51,8 +52,10 @@ def install(project: Path) -> Path:
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--project", type=Path, default=Path("."), help="the DVC project (default: here)")
-    out = install(ap.parse_args(argv).project)
-    print(f"{out}: dvc plots draws offline (vega, vega-lite {VEGA_LITE} and vega-embed inline)")
+    project = ap.parse_args(argv).project
+    out = install(project)
+    print(f"{out}: dvc plots draws offline (vega, vega-lite {VEGA_LITE} and vega-embed inline)" if out else
+          f"{project.resolve()}: no .dvc/ here, so no DVC plots page to set up")
 
 
 if __name__ == "__main__":
