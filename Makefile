@@ -19,7 +19,7 @@ $(STAMP): requirements.txt pyproject.toml
 run: $(STAMP)  ## rebuild all results of params.yaml's scenes at its scale
 	PATH=$(CURDIR)/$(BIN):$$PATH $(SNAKEMAKE)
 
-smoke: $(STAMP)  ## the whole pipeline at the smoke scale (a few minutes; docs/benchmarks.md)
+smoke: $(STAMP)  ## the whole pipeline at the smoke scale (a few minutes; benchmarks/record.md)
 	PATH=$(CURDIR)/$(BIN):$$PATH $(SNAKEMAKE) --config scale=smoke
 
 regimes: $(STAMP)  ## Table 1 under each grasp regime (results/<build>/volume_regimes; SCALE=smoke for a quick one)
