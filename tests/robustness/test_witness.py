@@ -200,7 +200,7 @@ FAMILIES = {
                       "witness 'images'"),
     # a gauge amplifier's gain leaves the unloaded counts alone: only the session's image gain sees
     # it, down from /4 on every trial of this session; up, 4x is caught on 2 of 3 trials and 5x
-    # saturates the ADC (docs/robustness.md: the measured trade-off, a known gap)
+    # saturates the ADC (benchmarks/record.md, "Tool witnesses: gauge gain against max_z": a known gap)
     "gauge_gain": (lambda t, m: fault.gauge_gain(t, m), st.sampled_from([0.2, 0.25]), "stands out from its session: gain"),
 }
 
