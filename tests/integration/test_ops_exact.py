@@ -17,7 +17,7 @@ host and the emulated CPUs, and the same comparison reports them.
 The batch: QEMU computes each vector float instruction in software, about 40 MFLOP/s, so the
 default scale's batch of 64 costs about 10 CPU-minutes per emulated CPU. The suite runs the same
 ops, widths and input at a batch of 4; ``TACTILEPIPE_OPS_BATCH=64`` runs the full batch
-(docs/reproducibility.md, "Every op exact", has both measured)."""
+(benchmarks/record.md, "Op-by-op probe", has both measured)."""
 
 from __future__ import annotations
 
