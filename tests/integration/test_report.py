@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from support.browser import chromium_run as _chromium_run
+from support.browser import chromium_run
 from support.project import snakemake
 
 pytestmark = pytest.mark.integration
@@ -75,7 +75,7 @@ def test_the_front_page_shows_tables_as_tables_and_parameters_in_one_collapsed_t
 
 
 def test_a_browser_renders_the_tables_and_keeps_the_parameters_closed(report, tmp_path):
-    dom = _chromium_run(report["path"], "--dump-dom")
+    dom = chromium_run(report["path"], "--dump-dom")
     tables = re.findall(r"<table class=\"tactilepipe\">.*?</table>", dom, re.S)
     assert tables and "Table 1: R²" in tables[0], dom[:2000]
     cells = re.findall(r"<td class=\"num\">([^<]*)</td>", tables[0])
@@ -84,7 +84,7 @@ def test_a_browser_renders_the_tables_and_keeps_the_parameters_closed(report, tm
     details = re.search(r"<details class=\"parameters\"[^>]*>", dom)
     assert details and " open" not in details.group(0)
     png = tmp_path / "front.png"
-    _chromium_run(report["path"], f"--screenshot={png}", "--window-size=1400,2400")
+    chromium_run(report["path"], f"--screenshot={png}", "--window-size=1400,2400")
     import cv2
     image = cv2.imread(str(png))
     assert image is not None and image.shape[:2] == (2400, 1400)
@@ -100,7 +100,7 @@ def test_the_landing_page_opens_at_its_title_with_table_1_in_view(report, tmp_pa
     end = html.rfind("</body>")
     page = tmp_path / "probed.html"
     page.write_text(html[:end] + LAYOUT_PROBE + html[end:])
-    dom = _chromium_run(page, "--dump-dom", "--window-size=1400,900")
+    dom = chromium_run(page, "--dump-dom", "--window-size=1400,900")
     found = re.search(r'data-layout="([^"]*)"', dom)
     assert found, "the probe did not run: " + dom[:2000]
     layout = json.loads(unescape(found.group(1)))

@@ -17,6 +17,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from tactilepipe.core.atomic import write_text
+
 TEMPLATE = "offline_plots.html"       # in .dvc/, where DVC resolves a relative template path
 VEGA_LITE = "5.21"                    # DVC's specs are vega-lite 5
 
@@ -38,9 +40,7 @@ def install(project: Path) -> Path | None:
     if not dvc_dir.is_dir():
         return None
     out = dvc_dir / TEMPLATE
-    tmp = out.with_suffix(".html.tmp")
-    tmp.write_text(page(vl_convert.javascript_bundle(vl_version=VEGA_LITE)), encoding="utf-8")
-    tmp.replace(out)
+    write_text(out, page(vl_convert.javascript_bundle(vl_version=VEGA_LITE)))
     dvc = Path(sys.executable).with_name("dvc")
     done = subprocess.run([str(dvc) if dvc.exists() else "dvc", "config", "--local", "plots.html_template", TEMPLATE],
                           cwd=project, capture_output=True, text=True)
