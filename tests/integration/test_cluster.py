@@ -154,10 +154,11 @@ def test_device_cuda_without_cuda_is_one_clear_error(tiny_data, tmp_path):
     assert resolve_device("auto").type == "cpu"
     with pytest.raises(TactilepipeError, match="device 'cuda' requested but CUDA is not available"):
         resolve_device("cuda")
-    # through the CLI: params.yaml's tool_train.device reaches the trainer
+    # through the CLI: params.yaml's tool_train.device reaches the trainer (with native kernels, as a
+    # GPU run must set; portable kernels on cuda are refused earlier, by the params check)
     root, split, _ = tiny_data
     proc = run([str(BIN / "tactilepipe"), "tool-train", "--params", str(REPO / "params.yaml"), "--scale", "smoke",
-                "--override", json.dumps({"tool_train": {"device": "cuda"}}), "--scene", "tool_normal",
+                "--override", json.dumps({"tool_train": {"device": "cuda", "kernels": "native"}}), "--scene", "tool_normal",
                 "--run", "full", "--data-dir", str(root), "--split", str(split),
                 "--out-dir", str(tmp_path / "out"), "--quiet"], tmp_path, check=False)
     assert proc.returncode == 2
