@@ -4,7 +4,12 @@ Shared plain helpers (not fixtures) are in tests/support/."""
 
 from __future__ import annotations
 
-import os
+# A test process computes as a stage process does: NumPy and OpenCV capped at AVX2 before either
+# loads (core/vector_dispatch.py; the command line run in-process by a test would refuse otherwise)
+from tactilepipe.core import vector_dispatch
+vector_dispatch.pin()
+
+import os  # noqa: E402
 from pathlib import Path
 
 import pytest

@@ -92,9 +92,20 @@ def test_on_an_avx512_cpu_a_stage_runs_the_avx2_code():
     assert proc.stderr == ""             # no warning about a group this CPU lacks, in any stage's log
 
 
-def test_a_process_that_already_computes_is_left_as_it_is(monkeypatch):
-    import numpy  # noqa: F401  (this process has NumPy loaded: a cap now would not take)
-    for key in vector_dispatch.VARIABLES:
-        monkeypatch.delenv(key, raising=False)
-    assert vector_dispatch.pin() == {}
-    assert not any(k in os.environ for k in vector_dispatch.VARIABLES)
+@pytest.mark.skipif("avx512f" not in cpu_flags(), reason="only a CPU with AVX-512 runs code above the cap")
+def test_a_pin_after_numpy_or_opencv_loaded_raises():
+    late = ("import {lib}\nfrom tactilepipe.core import vector_dispatch as v\ntry:\n    v.pin()\n"
+            "except RuntimeError as exc:\n    print(exc)\nelse:\n    print('no error')")
+    out = _process(late.format(lib="numpy")).stdout
+    assert out.startswith("vector_dispatch.pin() called after numpy loaded: NumPy already run(s) code above AVX2")
+    # OpenCV loads NumPy: NumPy capped from the start, OpenCV not
+    numpy_capped = {"NPY_DISABLE_CPU_FEATURES": vector_dispatch.NUMPY_ABOVE_AVX2}
+    out = _process(late.format(lib="cv2"), numpy_capped).stdout
+    assert out.startswith("vector_dispatch.pin() called after numpy and cv2 loaded: OpenCV already run(s)"), out
+    # pinned first, a second call after the libraries loaded is fine
+    first = "from tactilepipe.core import vector_dispatch as v\nv.pin()\nimport numpy, cv2\nprint(sorted(v.pin()))"
+    assert _run(first) == ["['NPY_DISABLE_CPU_FEATURES',", "'OPENBLAS_CORETYPE',", "'OPENCV_CPU_DISABLE']"]
+    # a value the user set is theirs: a late call does not second-guess it
+    assert _run(late.format(lib="numpy"), {"NPY_DISABLE_CPU_FEATURES": "AVX512_SPR"}) == ["no", "error"]
+
+

@@ -8,7 +8,7 @@ default-scale training step (width 32, one thread): about 4,300 page faults a st
 ``zeros_like`` taking 1.5 ms instead of a memset's 0.2 ms. Raising the mmap threshold to glibc's
 maximum (32 MiB) and the trim threshold above any heap the tool models reach keeps those blocks
 in the heap between steps: a fifth of the page faults, and the same bytes (only where memory
-comes from changes, never what is computed). docs/reproducibility.md has the measurements.
+comes from changes, never what is computed). benchmarks/record.md, "Memory in a training step", has the measurements.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ transcendental functions are other approximations, so the same recording gave ot
 AVX-512 machine than on an AVX2 one. Measured on the smoke build: the simulated ``tool_shear``
 frames differed (its trials are rendered through OpenCV's ``remap``), and OpenCV's ``remap``,
 ``GaussianBlur`` and ``Sobel`` on float32 images give other bytes here with their AVX2 code
-switched off than with it (docs/reproducibility.md). ``pin`` caps each library at AVX2 before it
+switched off than with it (benchmarks/record.md, "Portability record and vector caps"). ``pin`` caps each library at AVX2 before it
 loads. On the AVX2 machine that made the committed results it changes no library's choice (NumPy
 ran its AVX2 code, OpenBLAS its Haswell kernels), so those results stand.
 
@@ -62,10 +62,39 @@ def pinned_environment(flags: set[str]) -> dict[str, str]:
 
 def pin() -> dict[str, str]:
     """Set the caps for this process (and the processes it starts) unless the user set them, and
-    return what is in force. Without effect once NumPy or OpenCV is loaded (a caller in a process
-    that already computes, such as a test): nothing is changed then."""
-    if any(name in sys.modules for name in LIBRARIES):
-        return {}
-    for key, value in pinned_environment(cpu_flags()).items():
+    return what is in force. Called once NumPy or OpenCV is loaded it can no longer set a cap: it
+    then raises unless every cap is already in force (the process was pinned before), since
+    going on would compute other bytes than every stage, silently."""
+    wanted = pinned_environment(cpu_flags())
+    loaded = [name for name in LIBRARIES if name in sys.modules]
+    if loaded:
+        uncapped = _uncapped(loaded, wanted)
+        if uncapped:
+            raise RuntimeError(
+                f"vector_dispatch.pin() called after {' and '.join(loaded)} loaded: {', '.join(uncapped)} already "
+                f"run(s) code above AVX2 here, which gives other bytes than the stages. Call it before anything "
+                f"imports NumPy or OpenCV (the command line does so first), or set {', '.join(wanted)} in the "
+                f"environment before the process starts")
+        return {k: os.environ[k] for k in VARIABLES if k in os.environ}
+    for key, value in wanted.items():
         os.environ.setdefault(key, value)
     return {k: os.environ[k] for k in VARIABLES if k in os.environ}
+
+
+# OpenCV's id of its AVX-512 base feature (cv::CPU_AVX_512F): reported off once capped
+_OPENCV_AVX512F = 13
+
+
+def _uncapped(loaded: list[str], wanted: dict[str, str]) -> list[str]:
+    """The loaded libraries that run code above a cap this CPU needs, by their own feature tables
+    (the variable was missing, or set after the library read it). A value the user set is theirs."""
+    def ours(key: str) -> bool:
+        return key in wanted and os.environ.get(key, wanted[key]) == wanted[key]
+    out = []
+    if "numpy" in loaded and ours("NPY_DISABLE_CPU_FEATURES"):
+        from numpy._core._multiarray_umath import __cpu_features__ as features
+        if any(features.get(name) for name in NUMPY_ABOVE_AVX2.split()):
+            out.append("NumPy")
+    if "cv2" in loaded and ours("OPENCV_CPU_DISABLE") and sys.modules["cv2"].checkHardwareSupport(_OPENCV_AVX512F):
+        out.append("OpenCV")
+    return out

@@ -215,14 +215,14 @@ def label_witness(witness: dict, evidence: dict, frames: dict, grays: dict, forc
     # size): they cannot judge its labels, which then rest on the clock alone
     snr = max(image_snr(grays[name]) for name in frames)
     metrics["image_snr"] = round(snr, 2)
-    metrics["images_judge"] = bool(snr >= tol["min_image_snr"])    # their gain and lag are compared only then
-    if clock_trusted and snr >= tol["min_image_snr"]:
+    metrics["images_judge"] = judge = bool(snr >= tol["min_image_snr"])    # their gain and lag are compared only then
+    if clock_trusted and judge:
         _zero_drift(metrics, failed, changes, k, tol)
-    if clock_trusted and snr >= tol["min_image_snr"] and np.isfinite(r) and r < tol["min_image_score"]:
-        failed["images"] = (
-            f"the tactile change follows |F| with correlation {r:.2f} at the labels' clock (at least "
-            f"{tol['min_image_score']:g}: tool_ingest.witness.min_image_score): the labels are not of these frames "
-            f"(a clock or frame-rate error pairs rest frames with loaded forces)")
+        if np.isfinite(r) and r < tol["min_image_score"]:
+            failed["images"] = (
+                f"the tactile change follows |F| with correlation {r:.2f} at the labels' clock (at least "
+                f"{tol['min_image_score']:g}: tool_ingest.witness.min_image_score): the labels are not of these "
+                f"frames (a clock or frame-rate error pairs rest frames with loaded forces)")
     return {"metrics": metrics, "failed": failed}
 
 

@@ -5,14 +5,14 @@ increasing order (fixed_order_c.py). The vector lanes and the register tiles spl
 output elements, so the result depends neither on the blocking nor on the vector width, and FMA is
 correctly rounded: every x86-64 CPU with AVX2 and FMA gives the same bits, at AVX2 speed. MKL's
 COMPATIBLE branch, the library path that also gives the same bits on Intel and AMD, is SSE2 code
-without FMA (docs/reproducibility.md, "Portable kernels", has both measured).
+without FMA (benchmarks/record.md, "Fixed-order kernels per layer", has both measured).
 
 A convolution is an im2col and one ``gemm`` forward, and two more for its gradients: the input's
 (followed by a col2im that adds each tap's share in a fixed tap order, plain IEEE additions) and the
 weight's, whose chains run over every output pixel of the batch in order. A bias' gradient is the
 product with a row of ones, so it too is one chain (computed as the additions it amounts to). The
 im2col and col2im are C loops too: torch's strided copies and per-tap additions took as long as the
-products they feed (docs/reproducibility.md). ``conv2d`` and ``linear`` take these paths
+products they feed (benchmarks/record.md). ``conv2d`` and ``linear`` take these paths
 while ``set_enabled(True)`` is in force (kernels.py turns it on with the portable kernels) and
 call torch's own otherwise.
 

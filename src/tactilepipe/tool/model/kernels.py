@@ -5,7 +5,7 @@ MKL's own dispatch, ATen's widest vector build, and as many threads as asked for
 a trained model then depend on the CPU's vendor, vector width, cache sizes and the thread count.
 
 ``portable`` pins every numerical path to code whose results do not depend on them
-(docs/reproducibility.md, "Portable kernels", has the measurements behind each pin):
+(docs/reproducibility.md, "Portable kernels", says why; benchmarks/record.md has the measurements):
 
 - oneDNN off: its JIT kernels block by the CPU's cache sizes and ISA; convolutions run as ATen's
   im2col + matrix multiply instead. NNPACK off too (its own CPU dispatch).

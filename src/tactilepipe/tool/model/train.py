@@ -153,9 +153,7 @@ def _check_data(data, split: dict, cfg: TrainConfig) -> tuple[np.ndarray, np.nda
     normalise(0.0, split["label_stats"], cfg.normalise)   # validates the mode
     if cfg.lr_schedule not in LR_SCHEDULES:
         raise ConfigError(f"unknown lr_schedule '{cfg.lr_schedule}' (one of {', '.join(LR_SCHEDULES)})")
-    check_mode(cfg.kernels)
-    if why := kernels_conflict("tool_train", cfg.kernels, cfg.num_threads):
-        raise ConfigError(why)
+    check_mode(cfg.kernels)          # the kernels against threads and device: train(), once the device is known
     return train_idx, val_idx
 
 
