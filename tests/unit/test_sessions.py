@@ -92,3 +92,22 @@ def test_the_sessions_command_prints_the_sheet_and_names_a_bad_session(tmp_path,
     (tmp_path / "raw/drift/bench").mkdir(parents=True)
     assert main(["sessions", "--params", params, "--scale", "smoke", "--override", '{"drift_session": "bench"}']) == 2
     assert "raw/drift/bench: no .bag files" in capsys.readouterr().err
+
+
+def test_a_data_set_mixing_simulated_and_recorded_sessions_says_so_in_its_qc():
+    from tactilepipe.core.simulated import mixed_data_note
+    from tactilepipe.tool.report.data import qc_markdown
+    assert mixed_data_note(["sim-default", "sim-default"], "trial") is None
+    assert mixed_data_note(["lab", "lab-2"], "trial") is None
+    note = mixed_data_note(["sim-default", "lab", "sim-default"], "lift")
+    assert note.startswith("Mixed data: 2 lift(s) from simulated session(s) (sim-default) and 1 from recorded "
+                           "session(s) (lab)")
+
+    def qc(*sessions):
+        trials = [{"trial": f"{s}/t{i}", "tool": "screwdriver_1", "frames": {"digit_left": 3, "digit_right": 3},
+                   "pairs": 3, "drops": {}, "clock": {}, "force_min_n": 0.0, "force_max_n": 4.0}
+                  for i, s in enumerate(sessions)]
+        return qc_markdown({"kind": "normal", "trials": trials, "pairs": 3 * len(trials), "image_size": 32}, "normal")
+    assert "Mixed data: 1 trial(s) from simulated session(s) (sim-default) and 2 from recorded session(s) (lab)" \
+        in qc("sim-default", "lab", "lab")
+    assert "Mixed data" not in qc("sim-default", "sim-default") and "Mixed data" not in qc("lab", "lab")

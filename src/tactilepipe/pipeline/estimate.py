@@ -30,7 +30,7 @@ from typing import Callable, Iterable
 
 from tactilepipe.pipeline import sourcecache
 from tactilepipe.pipeline.layout import results_root
-from tactilepipe.pipeline.sessions import is_simulated
+from tactilepipe.core.simulated import is_simulated
 from tactilepipe.tool.model.variants import NAMED_ARCHITECTURES, Architecture
 
 # (rule, wildcards, resources, threads) of one job, as Snakemake's DAG has it

@@ -9,7 +9,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from tactilepipe.core.errors import ConfigError
-from tactilepipe.pipeline.sessions import SessionSheet, is_simulated
+from tactilepipe.core.simulated import is_simulated
+from tactilepipe.pipeline.sessions import SessionSheet
 from tactilepipe.tool.scenes import TOOL_SCENES, scene_label
 
 

@@ -17,15 +17,11 @@ from functools import cache
 from pathlib import Path
 
 from tactilepipe.core.errors import ConfigError, InputError
+from tactilepipe.core.simulated import is_simulated
 
 STUDIES = ("volume", "drift", "tool")
 # a recording's name is one component of its output paths (spaces are fine: rules quote paths)
 PLAIN_NAME = re.compile(r"[^/\\\x00-\x1f.][^/\\\x00-\x1f]*")
-
-
-def is_simulated(session: str) -> bool:
-    """A session the simulator writes (``sim-<scale>``), not one recorded on a rig."""
-    return session.startswith("sim-")
 
 
 @dataclass(frozen=True)

@@ -9,13 +9,14 @@ runs is an input of its rule: pipeline/codedeps.py). A volume stage run by hand 
 from __future__ import annotations
 
 from tactilepipe.core.errors import ConfigError
+from tactilepipe.core.simulated import is_simulated
 
 
 def check(p: dict, source: str) -> None:
     """Raise ConfigError naming ``source`` and the keys when resolved parameters ``p`` disagree."""
     folds, sim = p["folds"], p["simulate_volume"]
     need = folds["train_lifts_per_volume"] + folds["test_lifts_per_volume"]
-    if any(s.startswith("sim-") for s in p["volume_sessions"]) and sim["lifts_per_volume"] < need:
+    if any(is_simulated(s) for s in p["volume_sessions"]) and sim["lifts_per_volume"] < need:
         raise ConfigError(
             f"{source}: simulate_volume.lifts_per_volume={sim['lifts_per_volume']} is fewer than the "
             f"{need} lifts per volume the folds need (train {folds['train_lifts_per_volume']} + "

@@ -22,6 +22,7 @@ import pandas as pd
 
 from tactilepipe.core.atomic import write_json, write_text
 from tactilepipe.core.errors import ConfigError
+from tactilepipe.core.simulated import SIMULATED_PREFIX
 from tactilepipe.papillarray.shards import ingest_bag
 from tactilepipe.volume import simulate
 from tactilepipe.volume.baseline import sweep
@@ -122,7 +123,7 @@ def compare_regimes(p: dict, out_dir: Path, jobs: int = 1, only: list[str] | Non
     results = {}
     for name in names:
         sim = {**p["simulate_volume"], **regimes[name]}
-        session = f"sim-{name}"
+        session = SIMULATED_PREFIX + name
         # a default-scale session is ~0.4 GB of bags: one regime's scratch at a time
         with tempfile.TemporaryDirectory(prefix=".scratch-", dir=out_dir) as scratch:
             raw_root, shard_root = Path(scratch) / "raw", Path(scratch) / "shards"

@@ -13,6 +13,7 @@ import pyarrow.parquet as pq
 from tactilepipe.core.atomic import write_json
 from tactilepipe.core.intervals import interval, paired_difference, ranking, ranking_text
 from tactilepipe.core.metrics import R2_CONSTANT, format_metric
+from tactilepipe.core.simulated import mixed_data_note
 from tactilepipe.core.tables import write_table
 from tactilepipe.volume import figures
 
@@ -142,8 +143,9 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
     unseen_table["abs_error_ml"] = (unseen_table["estimated_ml"] - unseen_table["true_ml"]).abs()
 
     tables = res / "tables"
+    mixed = mixed_data_note(pd.read_csv(res / "qc.csv", usecols=["session"])["session"].astype(str), "lift")
     write_table(table1, tables / "table1_r2", "Table 1: R² on test lifts (mean ± std over folds; 95 % "
-                "interval of the mean, t with the resampled-folds correction)",
+                "interval of the mean, t with the resampled-folds correction)" + (f". {mixed}" if mixed else ""),
                 machine_only=("r2_mean", "r2_std", "ci95_low", "ci95_high"))
     write_table(table2, tables / "table2_volumes", f"Table 2: true vs estimated volume, MLP {best}", "{:.2f}")
     write_table(unseen_table, tables / "unseen_volumes", f"Unseen volumes, MLP {best}", "{:.2f}")
@@ -192,7 +194,7 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
         "scale": p["scale"],
         "lifts_slipped": _slipped_lifts(res / "qc.csv"),
         "lifts_standing_out": _lifts_left_out(res / "qc.csv"),
-    }
+    } | ({"mixed_data": mixed} if mixed else {})
     metrics = _json_safe(metrics)
     write_json(res / "scores.json", metrics)
     write_json(res / "metrics.json", headline(metrics))

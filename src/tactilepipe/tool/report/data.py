@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from tactilepipe.core.atomic import write_text
+from tactilepipe.core.simulated import mixed_data_note
 from tactilepipe.tool.report import figures_data as figures
 from tactilepipe.tool.formats.trials import open_trial, trial_format
 from tactilepipe.tool.formats.serial_log import SATURATED
@@ -31,6 +32,9 @@ def qc_markdown(qc: dict, label: str) -> str:
     head = [f"# QC: {qc['kind']} trials", "",
             f"{len(qc['trials'])} trials, {qc['pairs']} frame pairs at {qc['image_size']} px; "
             f"dropped in total: {total_drops or 'none'}.", ""]
+    mixed = mixed_data_note([t["trial"].split("/")[0] for t in qc["trials"]], "trial")   # trial: <session>/<name>
+    if mixed:
+        head += [mixed, ""]
     sizes = sorted({f"{w}x{h}" for t in qc["trials"] for w, h in t.get("frame_size", {}).values()})
     if sizes:
         head += [f"Frames recorded at {', '.join(sizes)} (width x height), resized to {qc['image_size']} x "
