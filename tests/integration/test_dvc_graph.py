@@ -174,10 +174,10 @@ def test_generator_lists_each_stage_code_closure_and_declared_params():
     # the drift simulator shares the pillar physics with the lift simulator, not the lift simulator
     assert {"src/tactilepipe/papillarray/physics.py", "src/tactilepipe/papillarray/viscoelastic.py"} <= drift_code
     assert "src/tactilepipe/volume/simulate.py" not in drift_code
-    # a stage's CLI code is its own study's module: no other study's stages
-    assert "src/tactilepipe/cli/drift.py" in drift_code
-    assert not drift_code & {"src/tactilepipe/cli/volume.py", "src/tactilepipe/cli/tool.py"}
-    assert "src/tactilepipe/cli/drift.py" not in stages["volume"]["deps"]
+    # a stage's CLI code is its own module: no other stage's
+    assert "src/tactilepipe/cli/drift_simulate.py" in drift_code
+    assert not drift_code & {"src/tactilepipe/cli/volume_simulate.py", "src/tactilepipe/cli/tool_simulate.py"}
+    assert "src/tactilepipe/cli/drift_report.py" not in stages["volume"]["deps"]
     # its code, and the workflow's own library (the session sheet, scenes, stamps: as common.smk)
     library = set.intersection(*({d for d in s["deps"] if d.startswith("src/tactilepipe/pipeline/")}
                                  for s in stages.values()))

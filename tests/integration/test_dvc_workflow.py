@@ -461,9 +461,9 @@ EDITS = [   # (module, snakemake rules planned, DVC stages out of date, an outpu
     ("volume/report.py", {"volume_report"}, {"volume"}, f"{SMOKE}/volume/scores.json"),
     ("drift/analyse.py", {"drift_report"}, {"drift"}, f"{SMOKE}/drift/fits.csv"),
     # planned only (None: no repro, which the cases above show; these would re-run what they did,
-    # a simulator or whole scenes). A study's CLI module is in its own stages' code only: a drift
-    # stage edit re-runs nothing else (its DVC simulator stage re-simulates the drift session)
-    ("cli/drift.py", {"drift_report"}, {"drift_simulate", "drift"}, None),
+    # a simulator or whole scenes). A stage's CLI module is in its own code only: an edit of the
+    # drift report's re-runs that report, not the drift simulator
+    ("cli/drift_report.py", {"drift_report"}, {"drift"}, None),
     ("tool/model/network.py", {"tool_train", "tool_model_report"}, {"tool_models"}, None),
     ("tool/data/ingest.py", TOOL_DATA_ON, {"tool_data", "tool_models"}, None),
     # the drift simulator shares the pillar physics (papillarray/physics.py), not the lift simulator

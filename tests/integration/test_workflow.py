@@ -520,7 +520,7 @@ def test_an_edit_in_one_studys_code_plans_no_job_of_the_other(smoke_build: Path,
 NEW_STAGE = '''"""A count of the volume data set's lifts."""
 
 from tactilepipe.cli.registry import arg, command
-from tactilepipe.cli.volume import VOLUME_CHECKS
+from tactilepipe.cli.volume_args import VOLUME_CHECKS
 
 
 @command("volume-summary", "lifts and volumes of the dataset, counted",

@@ -20,12 +20,14 @@ from tactilepipe.pipeline import codedeps, studies
 from support.project import REPO
 
 # the stages by the CLI module that declares them
-TOOL_HOMES = {"tactilepipe.cli.tool", "tactilepipe.cli.study000", "tactilepipe.cli.rig"}
-PAPILLARRAY_HOMES = {"tactilepipe.cli.volume", "tactilepipe.cli.drift"}
 HOMES = {stage: module for stage, (module, _) in codedeps._declared_stages().items()}
+TOOL_HOMES = {m for m in HOMES.values() if m.startswith("tactilepipe.cli.tool_")} | \
+    {f"tactilepipe.cli.{m}" for m in ("study000", "rig", "predict", "realism", "portability")}
+PAPILLARRAY_HOMES = {m for m in HOMES.values() if m.startswith("tactilepipe.cli.volume_")} | \
+    {"tactilepipe.cli.papillarray_ingest", "tactilepipe.cli.drift_simulate", "tactilepipe.cli.drift_report"}
 TOOL_STAGES = sorted(s for s, m in HOMES.items() if m in TOOL_HOMES)
 PAPILLARRAY_STAGES = sorted(s for s, m in HOMES.items() if m in PAPILLARRAY_HOMES)
-DRIFT_STAGES = sorted(s for s, m in HOMES.items() if m == "tactilepipe.cli.drift")
+DRIFT_STAGES = sorted(s for s, m in HOMES.items() if m.startswith("tactilepipe.cli.drift_"))
 
 # one message of each study's checks, and the file that must hold it: a stage whose code holds
 # the text runs that check's code (on main, core/config.py held all three and was every stage's)
@@ -49,6 +51,16 @@ def test_the_stage_lists_cover_every_study():
         set(PAPILLARRAY_STAGES)
     for path, message in (VOLUME_CHECK, AXES_CHECK, TOOL_CHECK):
         assert message in (REPO / path).read_text()
+
+
+def test_each_tool_volume_and_drift_stage_is_its_own_module_and_runs_no_other_stages_module():
+    # editing one stage's declaration or function re-runs that stage's jobs only
+    own = {m for m in HOMES.values() if m.startswith(("tactilepipe.cli.tool_", "tactilepipe.cli.volume_",
+                                                       "tactilepipe.cli.drift_"))}
+    assert len(own) == len([s for s, m in HOMES.items() if m in own]) >= 18
+    for stage, module in HOMES.items():
+        if module in own:
+            assert codedeps.stage_modules(stage) & set(HOMES.values()) == {module}, stage
 
 
 def test_a_tool_stage_holds_no_volume_drift_or_papillarray_code_nor_their_checks():

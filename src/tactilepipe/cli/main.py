@@ -14,15 +14,20 @@ from tactilepipe.core import vector_dispatch
 from tactilepipe.core.errors import TactilepipeError
 
 
-# Importing a study's module declares its commands. Every module of this package but the shared
-# ones is a study's, found rather than listed, so that a new stage's module is the only file it
-# adds (pipeline/codedeps.py finds them the same way); --help lists these first, in this order.
-SHARED = {"main", "common", "registry", "provenance"}
-FIRST = ("volume", "drift", "tool", "study000", "rig", "compare", "sessions")
+# Importing a stage's module declares its command (a stage is one module, so that editing it
+# re-runs that stage only). Every module of this package but the shared ones declares commands,
+# found rather than listed, so that a new stage's module is the only file it adds
+# (pipeline/codedeps.py finds them the same way); --help lists these first, in this order.
+SHARED = {"main", "common", "registry", "provenance", "tool_args", "volume_args"}
+FIRST = ("volume_simulate", "papillarray_ingest", "volume_dataset", "volume_split", "volume_train",
+         "volume_gridsearch", "volume_baseline", "volume_report", "volume_regimes", "drift_simulate",
+         "drift_report", "tool_simulate", "tool_ingest", "tool_clock_figure", "tool_dataset", "tool_split",
+         "tool_train", "tool_model_report", "tool_data_report", "predict", "realism", "portability",
+         "study000", "rig", "compare", "sessions")
 
 
 def declare_commands() -> None:
-    """Import every study's module (once). A module that cannot be imported, or declares a
+    """Import every command's module (once). A module that cannot be imported, or declares a
     command wrongly, is one error naming its file."""
     found = {m.name for m in pkgutil.iter_modules(tactilepipe.cli.__path__)} - SHARED
     for name in [m for m in FIRST if m in found] + sorted(found - set(FIRST)):

@@ -1,7 +1,7 @@
 """One declaration per command: its name, help, arguments, and for a pipeline stage the parameters
 it reads and the ones the workflow reads to shape its jobs.
 
-A study's module declares each command on its function::
+A stage's module (cli/<stage>.py) declares its command on its function::
 
     @command("volume-split", "seeded train/test lift draws stratified by volume",
            params=("seed", "folds"), checks=VOLUME_CHECKS,

@@ -1,10 +1,11 @@
 """Which library files a pipeline stage runs, found from its imports (never listed by hand).
 
 A stage is a command of the command line, declared once with `@command("name", ...)` on its function
-in a study's module `tactilepipe.cli.<study>` (cli/registry.py).
+in its own module `tactilepipe.cli.<stage>` (cli/registry.py; a few commands that are no pipeline
+stage share one, cli/rig.py, cli/study000.py), so that editing one stage re-runs that stage only.
 Its code is:
 - the entry files (`__main__`, `cli/main.py`) and what cli/main.py imports for every stage (the
-  registry, `stage_params`), without the other studies' modules it imports;
+  registry, `stage_params`), without the other stages' modules it imports;
 - the stage's module, and of what its module level imports, what the stage uses: a ``from m
   import x`` counts when the stage function, the module-level helpers it calls, the constants
   they name or its own ``@command(...)`` declaration (argument choices, ``checks=``) read x
@@ -321,12 +322,30 @@ def stage_flags(stage: str) -> set[str]:
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "arg":
             found.update(a.value for a in node.args if isinstance(a, ast.Constant) and isinstance(a.value, str)
                          and a.value.startswith("--"))
-    # arguments shared through a module-level tuple (e.g. FOLDED) are found where that tuple is made
+    # arguments shared through a tuple (e.g. FOLDED) are found where that tuple is made: in the
+    # stage's module, or in the module it imports the name from (cli/volume_args.py)
     names = {n.id for n in ast.walk(call) if isinstance(n, ast.Name)}
-    for node in _tree(module_path(module)).body:
-        if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id in names for t in node.targets):
-            for sub in ast.walk(node.value):
-                if isinstance(sub, ast.Call) and isinstance(sub.func, ast.Name) and sub.func.id == "arg":
-                    found.update(a.value for a in sub.args if isinstance(a, ast.Constant)
-                                 and isinstance(a.value, str) and a.value.startswith("--"))
+    for value in _assigned(module, names) + [v for source, imported in _imported_names(module, names).items()
+                                             for v in _assigned(source, imported)]:
+        for sub in ast.walk(value):
+            if isinstance(sub, ast.Call) and isinstance(sub.func, ast.Name) and sub.func.id == "arg":
+                found.update(a.value for a in sub.args if isinstance(a, ast.Constant)
+                             and isinstance(a.value, str) and a.value.startswith("--"))
     return found
+
+
+def _assigned(module: str, names: set[str]) -> list[ast.AST]:
+    """The values the module level of ``module`` assigns to any of ``names``."""
+    return [node.value for node in _tree(module_path(module)).body if isinstance(node, ast.Assign)
+            and any(isinstance(t, ast.Name) and t.id in names for t in node.targets)]
+
+
+def _imported_names(module: str, names: set[str]) -> dict[str, set[str]]:
+    """{tactilepipe module: the names of ``names`` the module level of ``module`` imports from it}."""
+    out: dict[str, set[str]] = {}
+    for node in _tree(module_path(module)).body:
+        if isinstance(node, ast.ImportFrom) and node.module and module_path(node.module) is not None:
+            hit = {a.name for a in node.names if (a.asname or a.name) in names}
+            if hit:
+                out.setdefault(node.module, set()).update(hit)
+    return out
