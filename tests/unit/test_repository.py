@@ -7,6 +7,7 @@ from __future__ import annotations
 import ast
 import fnmatch
 import functools
+import os
 import re
 import subprocess
 
@@ -56,6 +57,24 @@ def test_links_of_the_readme_and_docs_exist():
         for target in LINK.findall(page.read_text()):
             if "://" not in target and not target.startswith("mailto:"):
                 assert (page.parent / target).exists(), f"{page.relative_to(REPO)} links to missing {target}"
+
+
+def newcomer_paths(readme: str) -> list[tuple[str, str]]:
+    """(docs page, result) for each page of docs/ the README links and each committed file under
+    results/ that page links or names in backticks."""
+    files = set(tracked_names()) - {"results/README.md"}
+    paths = []
+    for page in {t for t in LINK.findall(readme) if re.fullmatch(r"docs/[\w-]+\.md", t)}:
+        text = (REPO / page).read_text()
+        named = [os.path.normpath(f"docs/{t}") for t in LINK.findall(text)] + CODE_SPAN.findall(text)
+        paths += [(page, name) for name in named if name.startswith("results/") and name in files]
+    return paths
+
+
+def test_the_readme_leads_through_a_docs_page_to_a_committed_result():
+    readme = (REPO / "README.md").read_text()
+    assert newcomer_paths(readme), "no page of docs/ the README links names a committed file under results/"
+    assert not newcomer_paths(re.sub(r"\]\(docs/[^)]*\)", "]()", readme)), "the path must go through the README's links"
 
 
 def test_the_places_the_readme_promises_exist():
