@@ -5,6 +5,9 @@ a pickle's code, and no pointer to material outside the repository."""
 from __future__ import annotations
 
 import ast
+import fnmatch
+import functools
+import os
 import re
 import subprocess
 
@@ -19,13 +22,23 @@ LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
 OUTSIDE = [re.compile(p) for p in (r"\.\./" + "shared", "REFERENCE" + r"\.md", r"\b[Ii]ssue" + r" #?\d+")]
 
 
-def tracked_text_files():
+@functools.cache
+def _git_files() -> tuple[str, ...] | None:
     try:
-        names = subprocess.run(["git", "ls-files"], cwd=REPO, capture_output=True, text=True,
-                               check=True).stdout.split()
+        return tuple(subprocess.run(["git", "ls-files"], cwd=REPO, capture_output=True, text=True,
+                                    check=True).stdout.split())
     except (OSError, subprocess.CalledProcessError):
+        return None
+
+
+def tracked_names() -> tuple[str, ...]:
+    if (names := _git_files()) is None:
         pytest.skip("not a git checkout")
-    for name in names:
+    return names
+
+
+def tracked_text_files():
+    for name in tracked_names():
         path = REPO / name
         if path.suffix in {".png", ".pdf", ".npy", ".parquet", ".pt", ".bag", ".jpg"} or not path.is_file():
             continue
@@ -44,6 +57,24 @@ def test_links_of_the_readme_and_docs_exist():
         for target in LINK.findall(page.read_text()):
             if "://" not in target and not target.startswith("mailto:"):
                 assert (page.parent / target).exists(), f"{page.relative_to(REPO)} links to missing {target}"
+
+
+def newcomer_paths(readme: str) -> list[tuple[str, str]]:
+    """(docs page, result) for each page of docs/ the README links and each committed file under
+    results/ that page links or names in backticks."""
+    files = set(tracked_names()) - {"results/README.md"}
+    paths = []
+    for page in {t for t in LINK.findall(readme) if re.fullmatch(r"docs/[\w-]+\.md", t)}:
+        text = (REPO / page).read_text()
+        named = [os.path.normpath(f"docs/{t}") for t in LINK.findall(text)] + CODE_SPAN.findall(text)
+        paths += [(page, name) for name in named if name.startswith("results/") and name in files]
+    return paths
+
+
+def test_the_readme_leads_through_a_docs_page_to_a_committed_result():
+    readme = (REPO / "README.md").read_text()
+    assert newcomer_paths(readme), "no page of docs/ the README links names a committed file under results/"
+    assert not newcomer_paths(re.sub(r"\]\(docs/[^)]*\)", "]()", readme)), "the path must go through the README's links"
 
 
 def test_the_places_the_readme_promises_exist():
@@ -142,6 +173,86 @@ def test_the_docs_check_finds_a_missing_command_rule_and_key():
     known = _known_names()
     assert "unpack-public" not in known["command"] and "cleanall" not in known["make target"]
     assert "simulate_tool" not in known["rule"] and "tool_simulate" in known["rule"] and "smoke" in known["make target"]
+
+
+# What params.yaml's comments and the pages cite: a repository path (a glob names one file), a
+# section as `docs/page.md, "Heading"` (a heading, or its part before a colon), a decision by its
+# number, a decision record by its file name. A path holding <...> or {...} is a pattern, not a path;
+# a module path outside those roots (`tool/data/witness.py`, `estimate.py`) is one of the library's.
+ROOTS = r"(?:docs|studies|src|benchmarks|workflow|results|tests)/"
+REPO_PATH = re.compile(rf"(?<![\w/.-]){ROOTS}[\w./*<>{{}}-]*")
+MODULE = re.compile(rf"(?<![\w/.-])(?!{ROOTS})\w[\w/]*\.py\b")
+SECTION = re.compile(r'(docs/[\w/-]+\.md),?\s*"([^"\n]+)"')
+DECISION = re.compile(r"\b[Dd]ecisions?\s+(\d{4}(?:(?:,\s*|\s+and\s+|\s+or\s+)\d{4})*)")
+DECISION_FILE = re.compile(r"decisions/(\d{4}-[\w-]+\.md)")
+
+
+def params_comments(text: str) -> str:
+    """The comments of a YAML text, each on its own line (line numbers kept)."""
+    return "\n".join(m.group(1) if (m := re.search(r"(?:^|\s)#(.*)$", line)) else ""
+                     for line in text.splitlines())
+
+
+def headings(page: str) -> set[str]:
+    text = re.sub(r"```.*?```", "", (REPO / page).read_text(), flags=re.S)
+    titles = re.findall(r"^#{1,6}\s+(.+?)\s*$", text, re.M)
+    return set(titles) | {t.split(":")[0] for t in titles}
+
+
+def wrong_references(name: str, text: str, paths: bool) -> list[str]:
+    """`name:line: what` for each citation of the text that names nothing; paths and sections only
+    when `paths` (params.yaml's comments: the pages' links have their own test)."""
+    files = tracked_names()
+    records = {f.removeprefix("docs/decisions/") for f in files if f.startswith("docs/decisions/")}
+    wrong = []
+    def at(m, what):
+        wrong.append(f"{name}:{text.count(chr(10), 0, m.start()) + 1}: {what}")
+    for m in REPO_PATH.finditer(text) if paths else ():
+        path = m.group(0).rstrip("./")
+        if "<" in path or "{" in path:
+            continue
+        if "*" in path:
+            if len(fnmatch.filter(files, path)) != 1:
+                at(m, f"{path} matches {len(fnmatch.filter(files, path))} files, not one")
+        elif path not in files and not any(f.startswith(path + "/") for f in files):
+            at(m, f"{path} is not in the repository")
+    for m in MODULE.finditer(text) if paths else ():
+        if not any(f == "src/tactilepipe/" + m.group(0) or "/" not in m.group(0) and f.startswith("src/")
+                   and f.endswith("/" + m.group(0)) for f in files):
+            at(m, f"{m.group(0)} is no module of src/tactilepipe/")
+    for m in SECTION.finditer(text) if paths else ():
+        if m.group(1) in files and m.group(2) not in headings(m.group(1)):
+            at(m, f'{m.group(1)} has no heading "{m.group(2)}"')
+    for m in DECISION.finditer(text):
+        for number in re.findall(r"\d{4}", m.group(1)):
+            if not any(r.startswith(number + "-") for r in records):
+                at(m, f"decision {number} has no record in docs/decisions/")
+    for m in DECISION_FILE.finditer(text):
+        if m.group(1) not in records:
+            at(m, f"docs/decisions/{m.group(1)} does not exist")
+    return wrong
+
+
+def test_the_citations_of_params_yaml_and_the_pages_exist():
+    wrong = wrong_references("params.yaml", params_comments((REPO / "params.yaml").read_text()), paths=True)
+    for page in [REPO / p for p in DOC_PAGES] + sorted((REPO / "docs").glob("*.md")):
+        wrong += wrong_references(str(page.relative_to(REPO)), page.read_text(), paths=False)
+    assert not wrong, "citations of what does not exist:\n" + "\n".join(wrong)
+
+
+def test_the_citation_check_finds_a_missing_path_decision_and_heading():
+    text = params_comments(
+        "a: 1  # see docs/no_such_page.md and src/tactilepipe/cli/, tool/no_such.py, tool/data/witness.py\n"
+        "b: 2  # decisions 0025 and 0999; docs/decisions/0008-*.md, docs/decisions/0033-wrong-slug.md\n"
+        'c: 3  # docs/robustness.md, "No such heading"; docs/robustness.md "Volume labels"\n'
+        'd: 4  # docs/reproducibility.md, "Repeats and width" (its heading before the colon)\n')
+    assert wrong_references("p", text, paths=True) == [
+        "p:1: docs/no_such_page.md is not in the repository",
+        "p:2: docs/decisions/0033-wrong-slug.md is not in the repository",
+        "p:1: tool/no_such.py is no module of src/tactilepipe/",
+        'p:3: docs/robustness.md has no heading "No such heading"',
+        "p:2: decision 0999 has no record in docs/decisions/",
+        "p:2: docs/decisions/0033-wrong-slug.md does not exist"]
 
 
 class OtherThan(tuple):
