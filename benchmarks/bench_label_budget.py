@@ -6,7 +6,8 @@ Prints, per family and size, on how many trials the fault was caught (left out o
 reason), kept within the budget (it did not reach the labels), or kept over it (an overrun: a
 failure nobody named); then the clean and varied sessions' trials left out (false alarms) and
 overruns; and the run time. The seeded subset of this draw runs in the test suite
-(tests/robustness/test_label_budget.py); docs/robustness.md quotes this script's table.
+(tests/robustness/test_label_budget.py); benchmarks/record.md keeps its tables, docs/robustness.md
+the outcome per fault.
 
 Usage: python benchmarks/bench_label_budget.py [--seeds 2] [--victims 3] [--families ...] [--small]
 """

@@ -22,7 +22,8 @@ from support.project import REPO
 # the stages by the CLI module that declares them
 HOMES = {stage: module for stage, (module, _) in codedeps._declared_stages().items()}
 TOOL_HOMES = {m for m in HOMES.values() if m.startswith("tactilepipe.cli.tool_")} | \
-    {f"tactilepipe.cli.{m}" for m in ("study000", "rig", "predict", "realism", "portability")}
+    {f"tactilepipe.cli.{m}" for m in ("study000_unpack", "tool_evaluate", "study000_table", "rig", "predict", "realism",
+                                   "portability")}
 PAPILLARRAY_HOMES = {m for m in HOMES.values() if m.startswith("tactilepipe.cli.volume_")} | \
     {"tactilepipe.cli.papillarray_ingest", "tactilepipe.cli.drift_simulate", "tactilepipe.cli.drift_report"}
 TOOL_STAGES = sorted(s for s, m in HOMES.items() if m in TOOL_HOMES)

@@ -117,14 +117,6 @@ def test_an_overlay_refuses_what_its_group_refuses_naming_the_key(params_path, n
     assert str(err.value).startswith(f"{params_path}: invalid parameter at 'scales.")
 
 
-def test_the_depths_params_yaml_accepts_are_those_the_network_builds():
-    # core may not import tool, so the parameter model spells the depths out; this keeps them equal
-    from typing import get_args
-    from tactilepipe.core.parameters.tool import Depth
-    from tactilepipe.tool.model.variants import DEPTHS
-    assert sorted(get_args(Depth)) == sorted(DEPTHS)
-
-
 # --- finite and bounded ----------------------------------------------------------------------------
 
 def _integers(node, path=""):

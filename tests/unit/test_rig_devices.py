@@ -93,13 +93,6 @@ def test_trials_are_numbered_after_the_last_one_taken(tmp_path):
     assert next_trial_name(tmp_path, "knife_normal") == "knife_normal_002"
 
 
-def test_the_command_line_offers_the_modes_and_baud_rate_the_rig_code_has():
-    from tactilepipe.cli import rig as cli_rig
-    from tactilepipe.rig.arduino import BAUD
-    from tactilepipe.rig.cameras import MODES
-    assert cli_rig.MODE_NAMES == tuple(MODES) and cli_rig.DEFAULT_BAUD == BAUD
-
-
 def test_a_device_thread_that_does_not_stop_is_reported_and_left_behind_in_bounded_time():
     import threading
     import time

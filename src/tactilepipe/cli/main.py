@@ -23,7 +23,7 @@ FIRST = ("volume_simulate", "papillarray_ingest", "volume_dataset", "volume_spli
          "volume_gridsearch", "volume_baseline", "volume_report", "volume_regimes", "drift_simulate",
          "drift_report", "tool_simulate", "tool_ingest", "tool_clock_figure", "tool_dataset", "tool_split",
          "tool_train", "tool_model_report", "tool_data_report", "predict", "realism", "portability",
-         "study000", "rig", "compare", "sessions")
+         "study000_unpack", "tool_evaluate", "study000_table", "rig", "compare", "sessions")
 
 
 def declare_commands() -> None:

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from tactilepipe.cli.registry import arg, command
+from tactilepipe.rig.settings import BAUD, MODES
 from tactilepipe.tool import checks as tool_checks
 
 # the cross-key checks a stage runs on params.yaml by hand: its study's (the workflow runs every
@@ -17,11 +18,9 @@ TOOL_CHECKS = (tool_checks.check,)
 CAMERA_HELP = "a /dev/video* node, the DIGIT's serial number (e.g. D20262), or a video file / image sequence " \
               "(frame_%%06d.png) played at the mode's rate"
 
-# Written out here, not imported: every CLI call builds every parser, and a pipeline stage must not
-# load the rig's modules (OpenCV capture, pyserial). tests/unit/test_rig_devices.py keeps both in
-# step with rig/cameras.py and rig/arduino.py.
-MODE_NAMES = ("qvga60", "qvga30", "vga30", "vga15")
-DEFAULT_BAUD = 115200
+# from the rig's plain settings: every CLI call builds every parser, and a pipeline stage must not
+# load the rig's device code (OpenCV capture, pyserial)
+MODE_NAMES = tuple(MODES)
 
 
 def seconds(text: str) -> float:
@@ -65,7 +64,7 @@ def two_cameras(left: str, right: str) -> tuple[str, str]:
                arg("--right", help=f"right finger's camera: {CAMERA_HELP}"),
                arg("--mode", choices=MODE_NAMES, default="qvga60", help="DIGIT stream mode (width x height @ fps)"),
                arg("--port", help="the Arduino's serial port, e.g. /dev/ttyACM0"),
-               arg("--baud", type=int, default=DEFAULT_BAUD, help="the firmware's baud rate"),
+               arg("--baud", type=int, default=BAUD, help="the firmware's baud rate"),
                arg("--calibration", help="the Nano17's ATI .cal file (copied into the session once)"),
                arg("--tool", help="tool name: lowercase letters, digits and _ (e.g. screwdriver_1)"),
                arg("--kind", choices=["normal", "shear"], help="pressing (normal) or sliding (shear) trials"),

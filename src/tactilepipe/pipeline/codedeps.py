@@ -2,7 +2,7 @@
 
 A stage is a command of the command line, declared once with `@command("name", ...)` on its function
 in its own module `tactilepipe.cli.<stage>` (cli/registry.py; a few commands that are no pipeline
-stage share one, cli/rig.py, cli/study000.py), so that editing one stage re-runs that stage only.
+stage share one: cli/rig.py), so that editing one stage re-runs that stage only.
 Its code is:
 - the entry files (`__main__`, `cli/main.py`) and what cli/main.py imports for every stage (the
   registry, `stage_params`), without the other stages' modules it imports;

@@ -28,10 +28,10 @@ import numpy as np
 
 from tactilepipe.core.errors import InputError
 from tactilepipe.rig.reader import DeviceReader
+from tactilepipe.rig.settings import BAUD
 from tactilepipe.tool.formats.native_layout import calibrate
 from tactilepipe.tool.formats.serial_log import parse_line
 
-BAUD = 115200
 READ_TIMEOUT_S = 0.2                 # the port's read timeout: how often the reader checks for stop
 SILENT_AFTER_S = 1.0                 # no line for this long (15 Hz expected) counts as a stall
 MAX_LINE_BYTES = 1024                # a sample line is under 40 bytes: longer is not the firmware's output

@@ -30,11 +30,10 @@ import numpy as np
 
 from tactilepipe.core.errors import ArgumentError, InputError
 from tactilepipe.rig.reader import DeviceReader
+from tactilepipe.rig.settings import MODES
 
 SYSFS_VIDEO = Path("/sys/class/video4linux")
 DIGIT_PRODUCT = "DIGIT"
-# the DIGIT's stream modes: (width, height) as the sensor sends them, and frames per second
-MODES = {"qvga60": (320, 240, 60), "qvga30": (320, 240, 30), "vga30": (640, 480, 30), "vga15": (640, 480, 15)}
 SERIAL_NUMBER = re.compile(r"D[0-9A-Z]{4,}")
 READ_TIMEOUT_S = 1.0                 # a read that takes longer counts as a timeout
 LOST_AFTER_TIMEOUTS = 3              # consecutive failed reads after which the camera counts as unplugged

@@ -6,10 +6,10 @@ from typing import Annotated, Literal
 from pydantic import Field, NonNegativeFloat, PositiveFloat
 
 from tactilepipe.core.parameters.base import Group, Pair, RequiredKeys, Triple, UniqueList
+from tactilepipe.core.tool_vocabulary import BASELINES, RESNET_DEPTHS
 
-Depth = Literal[18, 34, 50, 101]          # ResNet depths: tool/model/variants.py DEPTHS (a test keeps them equal)
-# the baselines the model report fits (tool/model/variants.py BASELINES; a test keeps them equal)
-Baseline = Literal["mean_predictor", "tactile_rmse_linear", "rest_frame_rmse_linear", "one_finger_rmse_linear"]
+Depth = Literal[tuple(RESNET_DEPTHS)]      # the depths the network builds (core/tool_vocabulary.py)
+Baseline = Literal[BASELINES]              # the baselines the model report fits (the same)
 # A variant's name is the first part of its run names (tool/runs.py), which are [a-z_0-9]+; that no
 # name reads as another run ("<name>_r<k>", "full_<...>") is checked with the other groups (config.py).
 VariantName = Annotated[str, Field(pattern=r"^[a-z][a-z0-9]*(_[a-z0-9]+)*$")]

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-BASELINES = ("mean_predictor", "tactile_rmse_linear", "rest_frame_rmse_linear", "one_finger_rmse_linear")
+from tactilepipe.core.tool_vocabulary import BASELINES, RESNET_DEPTHS
 
 
 @dataclass(frozen=True)
@@ -60,10 +60,5 @@ NAMED_ARCHITECTURES: dict[str, Architecture] = {
     "no_gam": Architecture(((0, 2), (2, 4)), False),
 }
 
-# the ResNet regressor's depths: block kind and blocks per stage
-DEPTHS: dict[int, tuple[str, list[int]]] = {
-    18: ("basic", [2, 2, 2, 2]),
-    34: ("basic", [3, 4, 6, 3]),
-    50: ("bottleneck", [3, 4, 6, 3]),
-    101: ("bottleneck", [3, 4, 23, 3]),
-}
+# the ResNet regressor's depths: block kind and blocks per stage (params.yaml's vocabulary)
+DEPTHS: dict[int, tuple[str, list[int]]] = RESNET_DEPTHS
