@@ -317,8 +317,11 @@ def _outermost(keys: set[str]) -> list[str]:
 
 
 def _persisted(out: str) -> bool:
+    """Outputs made per recording session or per run (the raw sessions, shards, each session's clock
+    figure under tool/qc/, the trained models): DVC keeps them for Snakemake to rebuild the out-of-date
+    ones, so that a new session re-runs its own jobs only, in `dvc repro` as in `snakemake`."""
     parts = Path(out).parts
-    return parts[0] == "raw" or "shards" in parts or "models" in parts
+    return parts[0] == "raw" or "shards" in parts or "models" in parts or "qc" in parts
 
 
 def main(argv=None) -> int:
