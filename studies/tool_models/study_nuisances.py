@@ -90,8 +90,10 @@ def scores(data: dict, label: str, repeats: int, k: int) -> dict[str, np.ndarray
     out = {name: [] for name in x}
     for r in range(repeats):
         rng = np.random.default_rng(r)
-        test = [t for name in np.unique(tool) for t in
-                rng.permutation(np.unique(trial[tool == name]))[:max(1, round(0.15 * len(np.unique(trial[tool == name]))))]]
+        test = []
+        for name in np.unique(tool):
+            trials = rng.permutation(np.unique(trial[tool == name]))
+            test += list(trials[:max(1, round(0.15 * len(trials)))])
         held = np.isin(trial, test)
         for name, v in x.items():
             out[name].append(float(np.abs(knn(v[~held], y[~held], v[held], k) - y[held]).mean()))
