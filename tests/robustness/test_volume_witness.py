@@ -142,7 +142,7 @@ def test_an_offset_or_a_gain_on_one_sensor_of_one_lift_is_named_and_left_out(ses
     assert (qc.drop(index="s/v150_main_l00")["stands_out"] == "").all()
     kept = set(pd.read_parquet(tmp_path / "dataset.parquet", columns=["lift"])["lift"])
     assert kept == set(qc.index) - {"s/v150_main_l00"}
-    named = report._lifts_left_out(tmp_path / "qc.csv")        # scores.json lifts_standing_out
+    named = report._lifts_left_out(report._read_qc(tmp_path / "qc.csv"))        # scores.json lifts_standing_out
     assert list(named) == ["s/v150_main_l00"] and named["s/v150_main_l00"] == qc.loc["s/v150_main_l00", "stands_out"]
 
 

@@ -14,7 +14,8 @@ from tactilepipe.core.errors import ConfigError, InputError
 from tactilepipe.pipeline import codedeps, stamps
 from tactilepipe.pipeline.studies import load_params      # as the workflow validates: every study's checks
 from tactilepipe.tool import runs
-from tactilepipe.tool.model.variants import BASELINES, NAMED_ARCHITECTURES, Architecture, defined_variants
+from tactilepipe.core.tool_vocabulary import BASELINES
+from tactilepipe.tool.model.variants import NAMED_ARCHITECTURES, Architecture, defined_variants
 
 from support.project import REPO
 

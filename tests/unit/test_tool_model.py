@@ -20,7 +20,8 @@ from tactilepipe.tool.data.loader import ToolFrames
 from tactilepipe.tool.model.network import (MIN_IMAGE_SIZE, PAPER_WIDTH, TrimmedConv2d, build_model,
                                             count_parameters)
 from tactilepipe.tool.model.train import scheduled_lr, train
-from tactilepipe.tool.model.variants import DEPTHS, NAMED_ARCHITECTURES as VARIANTS
+from tactilepipe.core.tool_vocabulary import RESNET_DEPTHS as DEPTHS
+from tactilepipe.tool.model.variants import NAMED_ARCHITECTURES as VARIANTS
 from tactilepipe.tool.model.inference import latency_ms, load_model, predict
 
 from support.project import REPO

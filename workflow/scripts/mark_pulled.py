@@ -24,6 +24,7 @@ from pathlib import Path
 
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.core.yamlsafe import load_yaml_file
+from tactilepipe.pipeline.dvc_state import COMMAND_END, stage_targets
 
 
 def run(cmd: list[str]) -> subprocess.CompletedProcess:
@@ -101,23 +102,21 @@ def main(argv: list[str] | None = None) -> int:
         for stage, what in stale.items():
             print(f"  {stage}: {json.dumps(what)}", file=sys.stderr)
         return 1
-    params = load_yaml_file("params.yaml")
-    stages = {name: s for name, s in load_yaml_file("dvc.yaml")["stages"].items()
-              if name in built}   # a stage never built here has nothing to mark
-    if not stages:
+    scale = str(load_yaml_file("params.yaml")["scale"])
+    targets_of = {name: names for name, names in stage_targets(Path("."), scale).items()
+                  if name in built}   # a stage never built here has nothing to mark
+    if not targets_of:
         print("No stage of dvc.lock to mark up to date.")
         return 0
-    command = None
-    targets = []
-    for stage in stages.values():
-        argv = shlex.split(stage["cmd"].replace("${scale}", str(params["scale"])))
-        command = argv[:argv.index("--workflow-profile") + 2]
-        targets += argv[len(command):]
+    # every stage runs the same Snakemake command line up to its targets
+    first = shlex.split(load_yaml_file("dvc.yaml")["stages"][next(iter(targets_of))]["cmd"].replace("${scale}", scale))
+    command = first[:first.index(COMMAND_END) + 2]
+    targets = [t for names in targets_of.values() for t in names]
     touch = run([str(bin_dir / "snakemake"), *command[1:], "--touch", *targets])
     if touch.returncode != 0:
         print(touch.stdout[-3000:] + touch.stderr[-3000:], file=sys.stderr)
         return touch.returncode
-    print(f"DVC found every stage up to date; Snakemake now agrees ({len(targets)} targets of {len(stages)} stages).")
+    print(f"DVC found every stage up to date; Snakemake now agrees ({len(targets)} targets of {len(targets_of)} stages).")
     return 0
 
 

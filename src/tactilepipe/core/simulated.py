@@ -19,11 +19,12 @@ def mixed_data_note(sessions: Iterable[str], unit: str) -> str | None:
     """A sentence for a QC page when ``sessions`` (one entry per ``unit``: trial, lift) mix
     simulated and recorded sessions; None when they do not."""
     sessions = list(sessions)
-    sim = sorted({s for s in sessions if is_simulated(s)})
-    real = sorted({s for s in sessions if not is_simulated(s)})
+    flags = [is_simulated(s) for s in sessions]
+    sim = sorted({s for s, f in zip(sessions, flags) if f})
+    real = sorted({s for s, f in zip(sessions, flags) if not f})
     if not sim or not real:
         return None
-    n_sim = sum(is_simulated(s) for s in sessions)
+    n_sim = sum(flags)
     return (f"Mixed data: {n_sim} {unit}(s) from simulated session(s) ({', '.join(sim)}) and "
             f"{len(sessions) - n_sim} from recorded session(s) ({', '.join(real)}): its scores describe neither "
             f"alone. Build a lab's sessions on their own (a build of their own in params.yaml) to score them.")

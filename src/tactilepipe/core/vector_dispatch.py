@@ -75,9 +75,9 @@ def pin() -> dict[str, str]:
                 f"run(s) code above AVX2 here, which gives other bytes than the stages. Call it before anything "
                 f"imports NumPy or OpenCV (the command line does so first), or set {', '.join(wanted)} in the "
                 f"environment before the process starts")
-        return {k: os.environ[k] for k in VARIABLES if k in os.environ}
-    for key, value in wanted.items():
-        os.environ.setdefault(key, value)
+    else:
+        for key, value in wanted.items():
+            os.environ.setdefault(key, value)
     return {k: os.environ[k] for k in VARIABLES if k in os.environ}
 
 

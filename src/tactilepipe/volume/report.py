@@ -78,16 +78,19 @@ def _peak_pillar_forces(shard: Path) -> tuple[np.ndarray, float]:
     return forces, (s0["stamp_ns"][k] - s0["stamp_ns"][0]) / 1e9
 
 
-def _slipped_lifts(qc_path: Path) -> list[str]:
+def _read_qc(qc_path: Path) -> pd.DataFrame:
+    """The data set's per-lift QC table (volume/dataset.py), read once for every note drawn from it."""
+    return pd.read_csv(qc_path, dtype={"stands_out": str, "session": str}, keep_default_na=False)
+
+
+def _slipped_lifts(qc: pd.DataFrame) -> list[str]:
     """Lifts left out of the models because their grasp slid off the table (volume/dataset.py)."""
-    qc = pd.read_csv(qc_path)
     return sorted(qc.loc[qc["slipped"], "lift"]) if "slipped" in qc else []
 
 
-def _lifts_left_out(qc_path: Path) -> dict[str, str]:
+def _lifts_left_out(qc: pd.DataFrame) -> dict[str, str]:
     """Lifts left out of the models because their sensors stood out from their session's, with
     the evidence (volume/witness.py)."""
-    qc = pd.read_csv(qc_path, dtype={"stands_out": str}, keep_default_na=False)
     if "stands_out" not in qc:
         return {}
     out = qc[qc["stands_out"] != ""]
@@ -143,7 +146,8 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
     unseen_table["abs_error_ml"] = (unseen_table["estimated_ml"] - unseen_table["true_ml"]).abs()
 
     tables = res / "tables"
-    mixed = mixed_data_note(pd.read_csv(res / "qc.csv", usecols=["session"])["session"].astype(str), "lift")
+    qc = _read_qc(res / "qc.csv")
+    mixed = mixed_data_note(qc["session"], "lift")
     write_table(table1, tables / "table1_r2", "Table 1: R² on test lifts (mean ± std over folds; 95 % "
                 "interval of the mean, t with the resampled-folds correction)" + (f". {mixed}" if mixed else ""),
                 machine_only=("r2_mean", "r2_std", "ci95_low", "ci95_high"))
@@ -192,8 +196,8 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
         "table2_ml": {f"{v:g}": float(e) for v, e in zip(table2["true_ml"], table2["estimated_ml"])},
         "grid_best": grid.iloc[0][["hidden_units", "alpha", "learning_rate", "r2_mean"]].to_dict(),
         "scale": p["scale"],
-        "lifts_slipped": _slipped_lifts(res / "qc.csv"),
-        "lifts_standing_out": _lifts_left_out(res / "qc.csv"),
+        "lifts_slipped": _slipped_lifts(qc),
+        "lifts_standing_out": _lifts_left_out(qc),
     } | ({"mixed_data": mixed} if mixed else {})
     metrics = _json_safe(metrics)
     write_json(res / "scores.json", metrics)

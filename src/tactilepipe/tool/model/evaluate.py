@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from tactilepipe.core.metrics import mae, r2_score, rmse
-from tactilepipe.tool.model.variants import BASELINES
+from tactilepipe.core.tool_vocabulary import BASELINES
 
 WINDOW_EDGES = [0, 3, 6, 9, 12, 15, 18, 21]
 

@@ -48,7 +48,8 @@ from torch import nn
 
 from tactilepipe.core.errors import ArgumentError
 from tactilepipe.tool.model import fixed_order
-from tactilepipe.tool.model.variants import DEPTHS, NAMED_ARCHITECTURES, Architecture
+from tactilepipe.core.tool_vocabulary import RESNET_DEPTHS as DEPTHS
+from tactilepipe.tool.model.variants import NAMED_ARCHITECTURES, Architecture
 
 MIN_IMAGE_SIZE = 8
 GAM_CHANNEL_GATES = ("sigmoid", "none")

@@ -29,7 +29,8 @@ from torch import nn
 
 from tactilepipe.core.errors import ArgumentError, InputError
 from tactilepipe.tool.model.network import PAPER_WIDTH, build_model
-from tactilepipe.tool.model.variants import DEPTHS, NAMED_ARCHITECTURES
+from tactilepipe.core.tool_vocabulary import RESNET_DEPTHS as DEPTHS
+from tactilepipe.tool.model.variants import NAMED_ARCHITECTURES
 
 PUBLIC_MARKER = "initial_cnn1.conv1.weight"
 HEADS = {"normal": (0, 2, 4), "shear": (0, 3, 5)}      # public fc indices of our head.0, head.2, head.4

@@ -1,5 +1,5 @@
-"""The model variants of study 000's ablation, as the code reads them, and the depths of its ResNet
-regressor.
+"""The model variants of study 000's ablation, as the code reads them (the ResNet depths and the
+baselines they name: core/tool_vocabulary.py).
 
 A variant is data: an entry of params.yaml ``tool_variants`` (validated by
 core/parameters/tool.py ``ToolVariant``). Each says which input channels each encoder reads
@@ -13,8 +13,6 @@ checkpoint loads on its own. Kept free of torch, so the report and the workflow 
 from __future__ import annotations
 
 from dataclasses import dataclass
-
-from tactilepipe.core.tool_vocabulary import BASELINES, RESNET_DEPTHS
 
 
 @dataclass(frozen=True)
@@ -59,6 +57,3 @@ NAMED_ARCHITECTURES: dict[str, Architecture] = {
     "single": Architecture(((0, 2),), True),
     "no_gam": Architecture(((0, 2), (2, 4)), False),
 }
-
-# the ResNet regressor's depths: block kind and blocks per stage (params.yaml's vocabulary)
-DEPTHS: dict[int, tuple[str, list[int]]] = RESNET_DEPTHS

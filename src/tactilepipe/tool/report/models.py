@@ -27,7 +27,8 @@ from tactilepipe.core.intervals import interval
 from tactilepipe.core.tables import write_table
 from tactilepipe.tool.report import figures_models as fm
 from tactilepipe.tool.report import verdicts
-from tactilepipe.tool.model.variants import BASELINES, defined_variants
+from tactilepipe.core.tool_vocabulary import BASELINES
+from tactilepipe.tool.model.variants import defined_variants
 from tactilepipe.tool.model.evaluate import baselines, evaluate, rest_frame_rmse_features, tactile_rmse_features
 from tactilepipe.tool.data.loader import ToolFrames
 from tactilepipe.tool.runs import run_spec, sweep_run_name
