@@ -64,7 +64,7 @@ def setup(wd: Path, small: bool = False) -> float:
         if not small and (REPO / "results/default" / shards).is_dir():
             shutil.copytree(REPO / "results/default" / shards, wd / "results/default" / shards)     # keeps mtimes
     for scene in ("tool_normal", "tool_shear"):                       # data, splits, models, figures
-        if not small and (REPO / "results/default" / scene / "metrics.json").is_file():
+        if not small and (REPO / "results/default" / scene / "scores.json").is_file():
             shutil.copytree(REPO / "results/default" / scene, wd / "results/default" / scene,
                             ignore=shutil.ignore_patterns("last.pt"))
     # the rules' parameter stamps, with their times (older than the results they made)
@@ -107,7 +107,7 @@ def main() -> None:
         print(f"project copy in {wd}; building the {'smoke' if args.small else 'default'} scale once "
               f"(dvc repro {' '.join(stages)}) ...", flush=True)
         print(f"  first dvc repro (reused recordings and shards): {setup(wd, args.small):.1f} s", flush=True)
-        targets = ["results/smoke/drift/metrics.json"] if args.small else SMK_TARGETS
+        targets = ["results/smoke/drift/metrics/loaded.json"] if args.small else SMK_TARGETS
         smk_first = sh([str(BIN / "snakemake"), "--cores", "2", "-n", *targets], wd)
         smk = best_of([str(BIN / "snakemake"), "--cores", "2", *targets], wd, repeats)
         rep = best_of([str(BIN / "dvc"), "repro", *stages], wd, repeats)

@@ -219,7 +219,7 @@ SLURM_FLAGS = [
 
 # what the cluster builds: every rule of the volume and drift scenes, and of the tool scenes'
 # data stages with one training run (the smoke build trains 24 more the same way)
-CLUSTER_TARGETS = ["volume/metrics.json", "drift/metrics.json", "tool_normal/models/full/eval.json"]
+CLUSTER_TARGETS = ["volume/metrics/fy_fz.json", "drift/metrics/loaded.json", "tool_normal/models/full/eval.json"]
 CLUSTER_RUNS = ["tool_normal/models/full"]
 
 
@@ -228,7 +228,7 @@ def comparable(wd: Path) -> dict:
     out = {}
     vm = json.loads((results(wd) / "volume/scores.json").read_text())
     out["volume"] = {k: vm[k] for k in ("r2", "mu_star", "unseen_ml")}
-    dm = json.loads((results(wd) / "drift/metrics.json").read_text())
+    dm = json.loads((results(wd) / "drift/scores.json").read_text())
     out["drift"] = dm["drift_30min_n"]
     for run in CLUSTER_RUNS:
         e = json.loads((results(wd) / run / "eval.json").read_text())

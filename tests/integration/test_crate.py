@@ -94,7 +94,7 @@ def test_the_crate_loads_back_as_a_workflow_run_of_the_build(build, tmp_path):
         assert cpu["machine"] and cpu["python"] == sys.version.split()[0]
         # the outputs: files of the crate, byte for byte the build's, each with its DVC md5
         results_ = action["result"]
-        assert f"{SMOKE}/drift/metrics.json" in _ids(results_)
+        assert f"{SMOKE}/drift/metrics/loaded.json" in _ids(results_)
         for f in results_:
             assert (out / f.id).read_bytes() == (wd / f.id).read_bytes(), f.id
             assert len(f["identifier"]["value"]) == 32

@@ -132,8 +132,10 @@ def test_every_generated_file_is_a_declared_out(repo):
     assert undeclared == []
     # metrics are `cache: false`: git versions them (a clone has them without a pull)
     in_git = run(["git", "ls-files", "results"], wd).stdout.split()
-    assert sorted(f for f in in_git if f.endswith("metrics.json")) == sorted(
-        f"{SMOKE}/{s}/metrics.json" for s in ("drift", "tool_normal", "tool_shear", "volume"))
+    assert sorted(f for f in in_git if "/metrics/" in f) == sorted(
+        [f"{SMOKE}/drift/metrics/{r}.json" for r in ("loaded", "unloaded")]
+        + [f"{SMOKE}/{s}/metrics/{v}.json" for s in ("tool_normal", "tool_shear") for v in ("full", "no_ref")]
+        + [f"{SMOKE}/volume/metrics/{m}.json" for m in ("baseline", "fx_fy_fz", "fy", "fy_fz", "fz")])
     assert (wd / ".dvc/config").read_text().count("reflink,copy") == 1
 
 
@@ -144,13 +146,13 @@ def test_dvc_repro_records_every_stage_and_its_metrics(repo):
     assert lock["stages"]["tool_models"]["params"]["params.yaml"]["scale"] == "smoke"
     shown = json.dumps(repo["baseline"]["metrics"])
     for scene in ("volume", "drift", "tool_normal", "tool_shear"):
-        assert f"{SMOKE}/{scene}/metrics.json" in shown, scene
+        assert f"{SMOKE}/{scene}/metrics/" in shown, scene
     volume = json.loads((results(repo["wd"]) / "volume/scores.json").read_text())
     assert volume["scale"] == "smoke" and volume["r2"]["fy_fz"]["mean"] > 0.9
 
 
 def take_in_session(repo: dict, scene: str, session: str, simulate_flags: list[str], param_line: str,
-                    new_param_line: str, metrics: list[str]) -> dict:
+                    new_param_line: str, scene_dirs: list[str]) -> dict:
     """A session "recorded on the rig" (the simulator with another seed, somewhere else) is copied
     into raw/<scene>/, `dvc add`ed, named in params.yaml, reproduced, committed and pushed.
     Returns dvc repro's output and the metrics diff (JSON and Markdown) against the last commit."""
@@ -170,10 +172,9 @@ def take_in_session(repo: dict, scene: str, session: str, simulate_flags: list[s
     taken = {"out": out, "planned": job_counts(plan), "planned_stages": planned_stages,
              "diff": json.loads(dvc(wd, "metrics", "diff", "--json").stdout),
              "diff_md": dvc(wd, "metrics", "diff", "--md").stdout}
-    # each scene's metrics travel with its provenance and run times, and the rules' parameter stamps
-    records = [str(Path(m).with_name(n)) for m in metrics
-               for n in ("metrics.json", "scores.json", "provenance.json", "runtime.json")
-               if (wd / Path(m).with_name(n)).exists()]
+    # each scene's metrics travel with its scores, provenance and run times, and the rules' parameter stamps
+    records = [f"{d}/{n}" for d in scene_dirs for n in ("metrics", "scores.json", "provenance.json", "runtime.json")
+               if (wd / d / n).exists()]
     git(wd, "add", "params.yaml", "dvc.lock", f"raw/{scene}/{session}.dvc", f"raw/{scene}/.gitignore", *records,
         f"{SMOKE}/params")
     git(wd, "commit", "-q", "-m", f"new {scene} session {session}")
@@ -188,7 +189,7 @@ def new_session(repo) -> dict:
     shard_dir = results(wd) / "volume/shards/sim-smoke"
     old_shards = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in shard_dir.glob("*.parquet")}
     taken = take_in_session(repo, "volume", NEW, ["--labels"], 'volume_sessions: ["sim-{scale}"]',
-                            f'volume_sessions: ["sim-{{scale}}", "{NEW}"]', [f"{SMOKE}/volume/metrics.json"])
+                            f'volume_sessions: ["sim-{{scale}}", "{NEW}"]', [f"{SMOKE}/volume"])
     n_new = len(list((wd / "raw/volume" / NEW).glob("*.bag")))
     return {**taken, "old_shards": old_shards, "n_new": n_new}
 
@@ -211,11 +212,11 @@ def test_new_session_reruns_only_the_volume_stage_and_ingests_only_new_bags(repo
     # the metrics diff against the last commit: the volume scene changed, nothing else; and it
     # lists metrics only, not what made them (provenance) nor how long it took (run times)
     diff = new_session["diff"]
-    assert set(diff) == {f"{SMOKE}/volume/metrics.json"}, diff
-    assert not [k for k in diff[f"{SMOKE}/volume/metrics.json"] if "sessions" in k or "stages" in k], diff
-    changed = diff[f"{SMOKE}/volume/metrics.json"]
-    assert "r2.fy_fz.mean" in changed and changed["r2.fy_fz.mean"]["old"] != changed["r2.fy_fz.mean"]["new"]
-    assert "r2.fy_fz.mean" in new_session["diff_md"] and "HEAD" in new_session["diff_md"]
+    assert diff and all(f.startswith(f"{SMOKE}/volume/metrics/") for f in diff), diff
+    assert not [k for f in diff for k in diff[f] if "sessions" in k or "stages" in k], diff
+    changed = diff[f"{SMOKE}/volume/metrics/fy_fz.json"]
+    assert "r2" in changed and changed["r2"]["old"] != changed["r2"]["new"]
+    assert "volume/metrics/fy_fz.json" in new_session["diff_md"] and "HEAD" in new_session["diff_md"]
     assert "up to date" in dvc(wd, "status").stdout.lower()
 
 
@@ -228,7 +229,7 @@ def new_tool_session(repo, new_session) -> dict:
     old_shards = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in shard_dir.glob("*.parquet")}
     taken = take_in_session(repo, "tool", NEW_TOOL, [], 'tool_sessions: ["sim-{scale}"]',
                             f'tool_sessions: ["sim-{{scale}}", "{NEW_TOOL}"]',
-                            [f"{SMOKE}/tool_normal/metrics.json", f"{SMOKE}/tool_shear/metrics.json"])
+                            [f"{SMOKE}/tool_normal", f"{SMOKE}/tool_shear"])
     n_new = len(list((wd / "raw/tool" / NEW_TOOL).glob("*/meta.json")))
     return {**taken, "old_shards": old_shards, "n_new": n_new}
 
@@ -251,8 +252,8 @@ def test_new_tool_session_reruns_only_the_tool_stages_and_ingests_only_new_trial
     assert len(list((results(wd) / f"tool/shards/{NEW_TOOL}").glob("*.parquet"))) == new_tool_session["n_new"]
     # the metrics diff against the last commit: both tool scenes changed, nothing else
     diff = new_tool_session["diff"]
-    assert set(diff) == {f"{SMOKE}/{s}/metrics.json" for s in ("tool_normal", "tool_shear")}, diff
-    assert any(k.startswith("full.") for k in diff[f"{SMOKE}/tool_normal/metrics.json"]), diff
+    assert {f.split("/")[2] for f in diff} == {"tool_normal", "tool_shear"}, diff
+    assert "mae" in diff[f"{SMOKE}/tool_normal/metrics/full.json"], diff
     assert "up to date" in dvc(wd, "status").stdout.lower()
 
 
@@ -261,7 +262,7 @@ def new_drift_session(repo, new_session) -> dict:
     """Step 1 for the drift scene: a new 30-min drift experiment is copied in and analysed instead
     of the simulated one."""
     taken = take_in_session(repo, "drift", NEW_DRIFT, [], 'drift_session: "sim-{scale}"',
-                            f'drift_session: "{NEW_DRIFT}"', [f"{SMOKE}/drift/metrics.json"])
+                            f'drift_session: "{NEW_DRIFT}"', [f"{SMOKE}/drift"])
     n_new = len(list((repo["wd"] / "raw/drift" / NEW_DRIFT).glob("*.bag")))
     return {**taken, "n_new": n_new}
 
@@ -276,8 +277,8 @@ def test_new_drift_session_reruns_only_the_drift_stage(repo, new_drift_session):
     assert counts["drift_report"] == 1 and "drift_simulate" not in counts
     assert len(list((results(wd) / f"drift/shards/{NEW_DRIFT}").glob("*.parquet"))) == new_drift_session["n_new"]
     diff = new_drift_session["diff"]
-    assert set(diff) == {f"{SMOKE}/drift/metrics.json"}, diff
-    assert any(k.startswith("drift_30min_n") for k in diff[f"{SMOKE}/drift/metrics.json"]), diff
+    assert diff and all(f.startswith(f"{SMOKE}/drift/metrics/") for f in diff), diff
+    assert "drift_30min_n" in diff[f"{SMOKE}/drift/metrics/loaded.json"], diff
     assert "up to date" in dvc(wd, "status").stdout.lower()
 
 
@@ -296,15 +297,16 @@ def test_experiments_rerun_only_the_stages_of_the_changed_params(repo, new_sessi
         assert "full" in m and "no_ref" not in m, scene
         orderings = (results(wd) / f"{scene}/tables/paper_orderings.md").read_text()   # none with one variant
         assert "none: no ordering is between two of full" in orderings and m["paper_orderings"] == [], scene
+        assert sorted(p.name for p in (results(wd) / f"{scene}/metrics").iterdir()) == ["full.json"], scene
     params = json.loads(dvc(wd, "params", "diff", "--json").stdout)["params.yaml"]
     assert (params["baseline.mu_max"]["old"], params["baseline.mu_max"]["new"]) == (0.4, 0.35)
     variants = {k: yaml.safe_load(v) for k, v in params["tool_train.variants"].items()}   # DVC shows a list as text
     assert variants == {"old": ["full", "no_ref"], "new": ["full"]}, params
     show = dvc(wd, "exp", "show", "--md").stdout
-    assert "mu-variants" in show and "baseline.mu_max" in show and "r2.baseline.mean" in show, show[:2000]
+    assert "mu-variants" in show and "baseline.mu_max" in show and "mu_star" in show, show[:2000]
     exp_diff = json.loads(dvc(wd, "exp", "diff", "HEAD", "mu-variants", "--json").stdout)
     assert exp_diff["params"]["params.yaml"]["baseline.mu_max"]["new"] == 0.35
-    assert f"{SMOKE}/volume/metrics.json" in exp_diff["metrics"]
+    assert f"{SMOKE}/volume/metrics/baseline.json" in exp_diff["metrics"]
     # back to the committed state (the experiment stays in `dvc exp show`); Snakemake's records are
     # the experiment's until the restored results are marked current, once DVC has checked them
     git(wd, "checkout", "--", ".")
@@ -348,7 +350,7 @@ def test_push_clone_pull_is_byte_identical_and_snakemake_has_nothing_to_do(repo,
     assert any(repo["remote"].rglob("*"))
     run(["git", "clone", "-q", str(wd), str(clone)], repo["root"])
     assert not (clone / "raw/volume/sim-smoke").exists() and not (results(clone) / "volume/dataset.parquet").exists()
-    assert (results(clone) / "volume/metrics.json").exists()             # metrics come with git
+    assert (results(clone) / "volume/metrics/fy_fz.json").exists()       # metrics come with git
     # `make pull`: dvc pull, then, as DVC keeps no modification times and a clone has no Snakemake
     # records, the pulled results are marked up to date for Snakemake once DVC has found every
     # stage current by content
@@ -520,5 +522,5 @@ def test_a_module_rewritten_with_the_same_text_reruns_nothing(repo, new_session)
     wd = repo["wd"]
     path = wd / "src/tactilepipe/tool/model/network.py"
     path.write_text(path.read_text())
-    assert path.stat().st_mtime_ns > (results(wd) / "tool_normal/metrics.json").stat().st_mtime_ns
+    assert path.stat().st_mtime_ns > (results(wd) / "tool_normal/metrics/full.json").stat().st_mtime_ns
     assert _planned_rules(wd) == set() and _stale_stages(wd) == set()

@@ -92,7 +92,7 @@ def test_real_session_layouts_read_only_declared_files(tmp_path: Path, smoke_par
     (wd / "raw/drift/real-drift/notes.txt").write_text("room at 22 C\n")   # provenance.json hashes it too
     config = ["--config", 'tool_sessions=["real-native", "real-public", "real-ros"]', "drift_session=real-drift"]
     targets = [f"{SMOKE}/tool/shards/real-native/t1.parquet", f"{SMOKE}/tool/shards/real-public/data_normal-{public[0]}.parquet",
-               f"{SMOKE}/tool/shards/real-ros/t0.parquet", f"{SMOKE}/drift/metrics.json"]
+               f"{SMOKE}/tool/shards/real-ros/t0.parquet", f"{SMOKE}/drift/metrics/loaded.json"]
     audit = audited_snakemake(wd, *targets, *config)             # --config takes every word after it
     jobs = declared_jobs(wd, [*SNAKEMAKE, *config])
     reads = audit.reads()
@@ -104,4 +104,4 @@ def test_real_session_layouts_read_only_declared_files(tmp_path: Path, smoke_par
             "raw/drift/real-drift/notes.txt"} <= read_files
     assert undeclared(reads, [j for j in jobs if j.command in reads]) == {}
     assert undeclared_code(audit.imported(), [j for j in jobs if j.command in reads]) == {}
-    assert json.loads((results(wd) / "drift/metrics.json").read_text())
+    assert json.loads((results(wd) / "drift/metrics/loaded.json").read_text())

@@ -194,7 +194,7 @@ def test_a_recorded_session_runs_through_the_pipeline_with_no_step_by_hand(rig, 
                         "--trials", "3", "--no-prompt")
             assert done.returncode == 0, done.stderr
     assert len(list_trials(session)) == 6
-    snakemake(wd, f"{SMOKE}/tool_normal/metrics.json", f"{SMOKE}/tool_normal/qc.md", "--config",
+    snakemake(wd, f"{SMOKE}/tool_normal/metrics/full.json", f"{SMOKE}/tool_normal/qc.md", "--config",
               'tool_sessions=["lab-4"]', "scenes=[tool_normal]")
     metrics = json.loads((results(wd) / "tool_normal/scores.json").read_text())
     qc = (results(wd) / "tool_normal/qc.md").read_text()

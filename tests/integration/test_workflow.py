@@ -40,10 +40,11 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_build: Path):
     wd = smoke_build
     m = json.loads((results(wd) / "volume/scores.json").read_text())
     assert set(m["r2"]) == {"fx_fy_fz", "fy_fz", "fy", "fz", "baseline"}
-    # metrics.json, DVC's metrics, is the headline alone: the mean R² of each input, the best one's gain, μ*
-    assert json.loads((results(wd) / "volume/metrics.json").read_text()) == {
-        "r2": {k: {"mean": v["mean"]} for k, v in m["r2"].items()},
-        "best_minus_baseline": {"mean": m["best_minus_baseline"]["mean"]}, "mu_star": m["mu_star"]}
+    # DVC's metrics are the headline alone, a row per input: its mean R²; the best one's gain, the baseline's μ*
+    for k, v in m["r2"].items():
+        extra = {"r2_gain": m["best_minus_baseline"]["mean"]} if k == m["best_modality"] else \
+            {"mu_star": m["mu_star"]} if k == "baseline" else {}
+        assert json.loads((results(wd) / f"volume/metrics/{k}.json").read_text()) == {"r2": v["mean"], **extra}, k
     for method, r2 in m["r2"].items():
         assert set(r2) >= {"mean", "std"} and all(isinstance(v, float) for v in r2.values()), method
     assert 0.1 <= m["mu_star"] <= 0.4
@@ -64,8 +65,8 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_build: Path):
         assert (results(wd) / f"volume/tables/{table}.md").read_text().count("|") > 10
     for fig in ("r2_by_modality", "mu_r2_curve", "true_vs_estimated", "error_vs_runtime", "pillar_map"):
         assert (results(wd) / f"volume/figures/{fig}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    d = json.loads((results(wd) / "drift/metrics.json").read_text())
-    assert d["drift_30min_n"]["loaded"] > d["drift_30min_n"]["unloaded"] > 0
+    d = {run: json.loads((results(wd) / f"drift/metrics/{run}.json").read_text()) for run in ("loaded", "unloaded")}
+    assert d["loaded"]["drift_30min_n"] > d["unloaded"]["drift_30min_n"] > 0
     assert (results(wd) / "drift/figures/drift_curves.png").exists()
     for scene in ("tool_normal", "tool_shear"):
         for split in ("frame", "trial", "trial_r1", "loto_spatula", "loto_paper_knife", "lopo"):
@@ -78,9 +79,10 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_build: Path):
         tm = json.loads((results(wd) / f"{scene}/scores.json").read_text())
         assert tm["repeats"] == 2 and tm["splits"] == ["trial", "trial_r1"]
         assert tm["first_split"]["split"] == "trial" and "split" not in tm and "test_pairs" not in tm
-        # metrics.json, DVC's metrics, is the headline alone: each variant's mean scores
-        assert json.loads((results(wd) / f"{scene}/metrics.json").read_text()) == \
-            {"repeats": 2, **{v: {m: tm[v][m] for m in ("mae", "rmse", "r2")} for v in ("full", "no_ref", "single", "no_gam")}}
+        # DVC's metrics are the headline alone, a row per variant: its mean scores (the top-level keys)
+        for v in ("full", "no_ref", "single", "no_gam"):
+            assert json.loads((results(wd) / f"{scene}/metrics/{v}.json").read_text()) == \
+                {m: tm[v][m] for m in ("mae", "rmse", "r2")}, (scene, v)
         for name, t in [(v, tm[v]) for v in ("full", "no_ref", "single", "no_gam")] + list(tm["baselines"].items()):
             assert not {"train_s", "latency_ms"} & set(t), "run times belong in runtime.json"
             # a model's scores are its means over the splits, the interval beside them; the first
@@ -179,8 +181,8 @@ def test_changing_a_model_parameter_reruns_only_what_depends_on_it(smoke_build: 
     planned = set(re.findall(r"^(?:local)?rule (\w+):$", out, flags=re.M)) - {"all"}   # job headers, not file lists
     assert planned == {"volume_baseline", "volume_report"}, planned
     # `tactilepipe why` names the jobs and the key that moved, with no Snakemake output to read
-    why = run([str(BIN / "tactilepipe"), "why", f"{SMOKE}/volume/metrics.json"], wd).stdout
-    assert f"{SMOKE}/volume/metrics.json: 2 job(s) would run" in why, why
+    why = run([str(BIN / "tactilepipe"), "why", f"{SMOKE}/volume/metrics/baseline.json"], wd).stdout
+    assert f"{SMOKE}/volume/metrics/baseline.json: 2 job(s) would run" in why, why
     assert "volume_baseline x1:" in why and "parameters changed (volume-baseline: baseline.mu_min 0.1 -> 0.12)" in why, why
     assert "volume_report x1: Input files updated by another job" in why, why
 
@@ -230,7 +232,7 @@ def test_a_named_build_of_a_simulated_session_builds_to_the_end(tmp_path: Path):
     (results/<scale>/params/, decision 0025): its report reads that stamp for provenance.json."""
     wd = copy_project(tmp_path)
     snakemake(wd, "--config", "scale=smoke", "build=alt", "scenes=[drift]")
-    assert (results(wd, "alt") / "drift/metrics.json").is_file()
+    assert (results(wd, "alt") / "drift/metrics/loaded.json").is_file()
     prov = json.loads((results(wd, "alt") / "drift/provenance.json").read_text())
     stamp = json.loads((results(wd, "smoke") / "params/drift-simulate.json").read_text())
     assert prov["stages"]["drift-simulate"]["params"]["simulate_drift"] == stamp["values"]["simulate_drift"]
@@ -282,7 +284,7 @@ def test_dvc_repro_builds_a_scene_from_nothing(tmp_path: Path):
     m = json.loads((results(wd) / "volume/scores.json").read_text())
     assert m["scale"] == "smoke" and m["r2"]["fy_fz"]["mean"] > 0.9
     shown = json.loads(run([str(BIN / "dvc"), "metrics", "show", "--json"], wd).stdout)
-    assert f"{SMOKE}/volume/metrics.json" in json.dumps(shown)
+    assert f"{SMOKE}/volume/metrics/baseline.json" in json.dumps(shown)
     status = json.loads(run([str(BIN / "dvc"), "status", "--json", "volume"], wd).stdout or "{}")
     assert status == {}, status
     lock = yaml.safe_load((wd / "dvc.lock").read_text())
@@ -376,7 +378,7 @@ def test_each_scale_keeps_its_own_results_and_a_round_trip_reruns_nothing(smoke_
     for name in run(["git", "ls-files", "results/default"], REPO).stdout.split():   # the committed default scale
         (wd / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(REPO / name, wd / name)
-    assert (results(wd, "default") / "volume/metrics.json").is_file()
+    assert (results(wd, "default") / "volume/metrics/fy_fz.json").is_file()
     params = yaml.safe_load((wd / "params.yaml").read_text())
     other = {**params["scales"]["smoke"]}
     other["simulate_volume"] = {**other["simulate_volume"], "rate_hz": 250}
@@ -385,9 +387,9 @@ def test_each_scale_keeps_its_own_results_and_a_round_trip_reruns_nothing(smoke_
     for cmd in (["init", "-q"], ["add", "-A"], ["-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "built"]):
         run(["git", *cmd], wd)
     tracked = run(["git", "ls-files", "results"], wd).stdout.split()
-    assert f"{SMOKE}/volume/metrics.json" in tracked and f"{SMOKE}/params/volume-report.json" in tracked
+    assert f"{SMOKE}/volume/metrics/fy_fz.json" in tracked and f"{SMOKE}/params/volume-report.json" in tracked
     assert f"{SMOKE}/params/tool-train/full.json" in tracked          # a training job's own stamp too
-    before = (results(wd) / "volume/metrics.json").read_bytes()
+    before = (results(wd) / "volume/metrics/fy_fz.json").read_bytes()
     volume = ["--config", "scenes=[volume]"]
 
     dry = snakemake(wd, "-n", *volume, "scale=smoke_b")
@@ -398,15 +400,15 @@ def test_each_scale_keeps_its_own_results_and_a_round_trip_reruns_nothing(smoke_
 
     there = snakemake(wd, *volume, "scale=smoke_b")
     assert {"volume_simulate", "papillarray_ingest", "volume_report"} <= _ran(there)
-    assert (results(wd, "smoke_b") / "volume/metrics.json").read_bytes() != before
+    assert (results(wd, "smoke_b") / "volume/metrics/fy_fz.json").read_bytes() != before
     status = run(["git", "status", "--porcelain", "--untracked-files=all"], wd).stdout.splitlines()
     assert status and all(line.startswith("?? results/smoke_b/") for line in status), status
     assert _ran(snakemake(wd, "-n", *volume, "scale=smoke")) == set()
-    assert (results(wd) / "volume/metrics.json").read_bytes() == before
+    assert (results(wd) / "volume/metrics/fy_fz.json").read_bytes() == before
 
     named = snakemake(wd, "-n", *volume, "scale=smoke", "build=smoke_real_only")   # same recordings, own results
     assert {"papillarray_ingest", "volume_report"} <= _ran(named) and "volume_simulate" not in _ran(named)
-    assert "results/smoke_real_only/volume/metrics.json" in named.stdout
+    assert "results/smoke_real_only/volume/metrics/fy_fz.json" in named.stdout
     assert run(["git", "status", "--porcelain"], wd).stdout == "?? results/smoke_b/\n"
 
 
@@ -453,7 +455,7 @@ def test_a_new_model_variant_is_one_entry_in_params_yaml_and_trains_only_its_own
     assert run([str(BIN / "python"), "workflow/scripts/dvc_yaml.py", "--check"], wd).returncode == 0
     assert "tool_variants" in yaml.safe_load((wd / "dvc.yaml").read_text())["stages"]["tool_models"]["params"]
     before = run_digests(results(wd))
-    snakemake(wd, f"{SMOKE}/tool_normal/metrics.json", "--config", "scale=smoke", "scenes=[tool_normal]")
+    snakemake(wd, f"{SMOKE}/tool_normal/metrics/full.json", "--config", "scale=smoke", "scenes=[tool_normal]")
     after = run_digests(results(wd))
     assert {r: d for r, d in after.items() if "no_gam_copy" not in r} == before          # none trained again
     stamp = json.loads((results(wd) / "params/tool-train/no_gam_copy_r1.json").read_text())

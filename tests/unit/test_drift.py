@@ -190,13 +190,15 @@ def test_end_to_end_smoke_session(tmp_path, smoke_session, smoke_params):
     out = tmp_path / "drift"
     metrics = analyse.run(shards, root / "raw" / "session.json", out, smoke_params)
 
-    for rel in ["metrics.json", "scores.json", "drift_series.csv", "fits.csv", "fits.md", "figures/drift_curves.png"]:
+    for rel in ["metrics/loaded.json", "metrics/unloaded.json", "scores.json", "drift_series.csv", "fits.csv",
+                "fits.md", "figures/drift_curves.png"]:
         assert (out / rel).stat().st_size > 0, rel
     assert (out / "figures" / "drift_curves.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert json.loads((out / "scores.json").read_text()) == metrics and "fits" in metrics
-    # DVC's metrics are the headline alone: the drift in 30 min and the recalibration interval per run
-    assert json.loads((out / "metrics.json").read_text()) == {
-        k: metrics[k] for k in ("drift_30min_n", "recalibration_interval_min")}
+    # DVC's metrics are the headline alone, a row per run: its drift in 30 min and recalibration interval
+    for run in ("loaded", "unloaded"):
+        assert json.loads((out / "metrics" / f"{run}.json").read_text()) == {
+            k: metrics[k][run] for k in ("drift_30min_n", "recalibration_interval_min")}
     assert "| run | model |" in (out / "fits.md").read_text()
     page = (out / "fits.html").read_text()
     assert page.count("<table") == page.count("</table>") >= 2 and "<th>run</th>" in page and "|---|" not in page

@@ -28,7 +28,7 @@ def test_a_declared_output_is_a_target_of_its_scene(smoke_params):
     assert stage_rules.declared_outputs(["drift", "tool_normal"], "results/smoke") == []
     # the report's outputs are the hand-written rules' targets, which the declared ones join
     hand = scene_targets(["volume"], "results/smoke", smoke_params, SessionSheet(smoke_params))
-    assert "results/smoke/volume/metrics.json" in hand and not set(declared) & set(hand)
+    assert "results/smoke/volume/metrics/baseline.json" in hand and not set(declared) & set(hand)
 
 
 @pytest.mark.parametrize("decl, problem", [
@@ -83,11 +83,11 @@ def test_every_report_item_has_its_caption_file_and_a_readable_label(smoke_param
     from pathlib import Path
     from tactilepipe.pipeline import scenes
     res = "results/smoke"
-    tool = [f"{res}/{{scene}}/qc.md", f"{res}/{{scene}}/metrics.json"] + \
+    tool = [f"{res}/{{scene}}/qc.md"] + scenes.metric_outputs(f"{res}/{{scene}}", "{scene}", smoke_params) + \
         [f"{res}/{{scene}}/figures/{f}.png" for f in scenes.TOOL_DATA_FIGURES + scenes.tool_model_figures(smoke_params)] + \
         [f"{res}/{{scene}}/tables/{t}.md" for t in scenes.tool_model_tables(smoke_params)]
-    items = scenes.report_items(scenes.report_outputs("volume", res), "volume", smoke_params) + \
-        scenes.report_items(scenes.report_outputs("drift", res), "drift", smoke_params) + \
+    items = scenes.report_items(scenes.report_outputs("volume", res, smoke_params), "volume", smoke_params) + \
+        scenes.report_items(scenes.report_outputs("drift", res, smoke_params), "drift", smoke_params) + \
         scenes.report_items(tool, "{scene}", smoke_params)
     report_dir = Path(__file__).resolve().parents[2] / "workflow" / "report"
     captions = {caption for _, caption, _, _ in items if caption}

@@ -10,7 +10,7 @@ rule drift_report:
         raw=session_files("drift"),
         provenance=lambda w: provenance_inputs("drift"),
     output:
-        reported(scenes.report_outputs("drift", RESULTS), "drift"),
+        reported(scenes.report_outputs("drift", RESULTS, P), "drift"),
         series=f"{DRIFT}/drift_series.csv",
         fits=f"{DRIFT}/fits.csv",
     params:

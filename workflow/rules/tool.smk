@@ -181,7 +181,7 @@ rule tool_model_report:
         params=param_stamp("tool-model-report"),
         provenance=lambda w: provenance_inputs(w.scene),
     output:
-        metrics=reported([f"{RESULTS}/{{scene}}/metrics.json"], "{scene}")[0],
+        metrics=scenes.metric_outputs(f"{RESULTS}/{{scene}}", "{scene}", P),
         scores=f"{RESULTS}/{{scene}}/scores.json",
         provenance=f"{RESULTS}/{{scene}}/provenance.json",
         runtime=f"{RESULTS}/{{scene}}/runtime.json",

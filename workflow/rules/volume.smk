@@ -72,7 +72,7 @@ rule volume_report:
         params=param_stamp("volume-report"),
         provenance=lambda w: provenance_inputs("volume"),
     output:
-        reported(scenes.report_outputs("volume", RESULTS), "volume"),
+        reported(scenes.report_outputs("volume", RESULTS, P), "volume"),
     params:
         provenance=lambda w: provenance_args("volume"),
     resources:

@@ -4,8 +4,8 @@ DVC and Snakemake must agree on what depends on what, so the DVC stages are deri
 Snakemake plans, never written by hand. The only choices made here are the stages themselves:
 a name and the Snakemake targets its command builds (one stage per scene step). For each stage:
 - outs: the files its jobs write, each folded into the largest folder that holds nothing but
-  this stage's outputs (a recording session at most under raw/); metrics.json is the metrics
-  (the headline numbers only: `dvc metrics show` and `dvc exp show` make a column of each), and
+  this stage's outputs (a recording session at most under raw/); each scene's metrics/ folder is
+  the metrics (the headline numbers only, a file per model: core/metric_rows.py), and
   provenance.json, runtime.json and scores.json (every number the report makes) are outs; all
   `cache: false` (kept in git);
 - deps: the outputs of other stages its jobs read (as those stages declare them), the raw
@@ -33,6 +33,7 @@ import yaml
 from tactilepipe.pipeline import codedeps, layout
 from tactilepipe.pipeline.stamp_keeper import CONTENT_STAMPS     # the ingest rules' content stamps
 from tactilepipe.core.atomic import write_text
+from tactilepipe.core.metric_rows import FOLDER as METRICS_FOLDER
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.core.yamlsafe import load_yaml_file
 
@@ -61,7 +62,15 @@ DATA_PLOTS = {
     "intervals.csv": {"x": "mae_mean", "y": "model", "template": "bar_horizontal",
                       "title": "{scene}: mean test MAE (N) over the repeated splits, per variant and baseline"},
 }
-METRICS = {"metrics.json"}
+
+
+def is_metric(f: str) -> bool:
+    """A file DVC shows as metrics: a scene's metric row (metrics/<row>.json, core/metric_rows.py),
+    or study 000's metrics.json."""
+    path = Path(f)
+    return path.suffix == ".json" and (path.parent.name == METRICS_FOLDER or path.name == "metrics.json")
+
+
 # kept in git beside the metrics, but not metrics: what made them (provenance), how long it took
 # (run times change on every run) and every number behind the headline (scores.json)
 UNCACHED_OUTS = {"provenance.json", "runtime.json", "scores.json"}
@@ -136,7 +145,7 @@ def _under(path: str, folder: str) -> bool:
 def fold_outputs(files: list[str], stage: str, output_stage: dict[str, str]) -> list[str]:
     """Each output file of ``stage`` folded into the largest folder whose outputs are all this
     stage's and hold no metrics or run-time files (those are declared on their own)."""
-    special = {f for f in output_stage if Path(f).name in METRICS | UNCACHED_OUTS}
+    special = {f for f in output_stage if (is_metric(f) or Path(f).name in UNCACHED_OUTS)}
 
     def owned(folder: str) -> bool:
         inside = [f for f in output_stage if _under(f, folder)]
@@ -179,7 +188,7 @@ def generate(params: dict) -> str:
         return re.sub(rf"(?<![A-Za-z0-9-]){re.escape(sim)}(?![A-Za-z0-9-])", "sim-${scale}", path)
 
     folded = {name: fold_outputs([f for f, s in output_stage.items() if s == name
-                                  and Path(f).name not in METRICS | UNCACHED_OUTS], name, output_stage)
+                                  and not (is_metric(f) or Path(f).name in UNCACHED_OUTS)], name, output_stage)
               for name, _ in STAGES}
     doc = {"stages": {}}
     plots = []
@@ -218,7 +227,7 @@ def generate(params: dict) -> str:
                 else:
                     deps.add(f)
         outs = folded[name]
-        special = sorted(f for f, s in output_stage.items() if s == name and Path(f).name in METRICS | UNCACHED_OUTS)
+        special = sorted(f for f, s in output_stage.items() if s == name and (is_metric(f) or Path(f).name in UNCACHED_OUTS))
         stage = {"cmd": f"{COMMAND} " + " ".join(t.replace("{scale}", "${scale}").replace("{results}", dvc_root)
                                                  for t in targets),
                  "deps": sorted(map(dvc_path, deps)) + sorted(code) + sorted(rule_files),
@@ -227,7 +236,11 @@ def generate(params: dict) -> str:
         # rebuilds exactly the out-of-date ones (persist), which is what makes a new session cheap
         stage["outs"] = [{dvc_path(o): {"persist": True}} if _persisted(o) else dvc_path(o) for o in outs]
         stage["outs"] += [{dvc_path(f): {"cache": False}} for f in special if Path(f).name in UNCACHED_OUTS]
-        metrics = [{dvc_path(f): {"cache": False}} for f in special if Path(f).name in METRICS]
+        # a scene's metric rows as their folder: DVC shows each file in it as a row, and a row that
+        # comes or goes with params.yaml (a variant, an input) needs no new dvc.yaml
+        metrics = [{dvc_path(f): {"cache": False}}
+                   for f in sorted({str(Path(f).parent) if Path(f).parent.name == METRICS_FOLDER else f
+                                    for f in special if is_metric(f)})]
         if metrics:
             stage["metrics"] = metrics
         doc["stages"][name] = stage

@@ -9,7 +9,7 @@ from tactilepipe.cli.registry import arg, command
 from tactilepipe.papillarray.checks import check as papillarray_check
 
 
-@command("drift-report", "metrics.json, fits and figures of the drift study",
+@command("drift-report", "scores.json, metrics/, fits and figures of the drift study",
          checks=(papillarray_check,),
          params=("drift",), graph=("drift_session",),
          args=(arg("--in-dir", required=True, help="the scene's results folder"),

@@ -9,7 +9,7 @@ from tactilepipe.cli.tool_args import SCENE
 from tactilepipe.tool.checks import check as tool_check
 
 
-@command("tool-model-report", "scores.json, metrics.json, tables and figures of a tool scene's models",
+@command("tool-model-report", "scores.json, metrics/, tables and figures of a tool scene's models",
          checks=(tool_check,),
          params=("tool_train.variants", "tool_train.split", "tool_train.depth", "tool_train.image_size",
                  "tool_train.sweep", "tool_variants", "tool_report.equivalence_margin"),

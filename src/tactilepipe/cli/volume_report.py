@@ -8,7 +8,7 @@ from tactilepipe.cli.registry import arg, command
 from tactilepipe.cli.volume_args import VOLUME_CHECKS
 
 
-@command("volume-report", "metrics.json, tables and figures of the volume study",
+@command("volume-report", "scores.json, metrics/, tables and figures of the volume study",
          checks=VOLUME_CHECKS,
          params=("scale", "volume_sessions", "mlp.modalities", "mlp.grid.modality", "mlp.grid.inner_folds",
                  "folds.train_lifts_per_volume", "folds.test_lifts_per_volume"),

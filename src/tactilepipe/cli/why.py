@@ -7,7 +7,7 @@ from tactilepipe.cli.registry import arg, command
 
 @command("why", "which jobs would re-make an output (with the changed file, input or parameter key), or when and "
                 "why it was last made",
-         args=(arg("outputs", nargs="+", help="files the workflow makes (e.g. results/default/tool_normal/metrics.json)"),
+         args=(arg("outputs", nargs="+", help="files the workflow makes (e.g. results/default/tool_normal/metrics/full.json)"),
                arg("--repo", default=".", help="the project (default: here)")))
 def cmd_why(args, p) -> int:
     import subprocess

@@ -25,6 +25,7 @@ import pandas as pd
 from scipy.optimize import minimize_scalar
 
 from tactilepipe.core.atomic import write_json, write_text
+from tactilepipe.core.metric_rows import write_metric_rows
 from tactilepipe.core.metrics import r2_score
 from tactilepipe.core.tables import markdown_html
 from tactilepipe.drift import RUNS
@@ -252,14 +253,18 @@ def fits_markdown(fits: DriftFits, tolerance_n: float) -> str:
     return "\n".join(lines) + "\n"
 
 
-# metrics.json, DVC's metrics: what drifted in 30 min and how often to recalibrate, per run. Each
-# metric is a column of `dvc metrics show` and `dvc exp show`; the fits are in scores.json.
+# DVC's metrics, a row per run (core/metric_rows.py): what drifted in 30 min and how often to
+# recalibrate; the fits are in scores.json. A run the session lacks has a row of nulls.
 HEADLINE = ("drift_30min_n", "recalibration_interval_min")
+
+
+def headline(metrics: dict) -> dict[str, dict]:
+    return {run: {k: (metrics[k] or {}).get(run) for k in HEADLINE} for run in RUNS}
 
 
 def run(shards, session_meta: str | Path, out_dir: str | Path, params: dict) -> dict:
     """Shards of one drift session and its session.json -> scores.json (every number; returned),
-    metrics.json (its headline: HEADLINE), drift_series.csv, fits.csv, fits.md (and its HTML
+    metrics/<run>.json (its headline: HEADLINE), drift_series.csv, fits.csv, fits.md (and its HTML
     twin), figure."""
     from tactilepipe.drift import read_session_meta
     from tactilepipe.drift.figures import write_drift_figure  # matplotlib only when writing outputs
@@ -276,5 +281,5 @@ def run(shards, session_meta: str | Path, out_dir: str | Path, params: dict) -> 
     write_text(out_dir / "fits.html", markdown_html(page))     # what the Snakemake report shows
     write_drift_figure(out_dir / "figures" / "drift_curves.png", series, fits, tolerance)
     write_json(out_dir / "scores.json", metrics)
-    write_json(out_dir / "metrics.json", {k: metrics[k] for k in HEADLINE})
+    write_metric_rows(out_dir, headline(metrics))
     return metrics

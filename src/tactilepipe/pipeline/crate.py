@@ -24,6 +24,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from tactilepipe.core.errors import InputError
+from tactilepipe.core.metric_rows import FOLDER as METRICS_FOLDER
 from tactilepipe.pipeline.layout import results_root
 
 PROFILES = {"https://w3id.org/ro/wfrun/process/0.5": "Process Run Crate",
@@ -31,8 +32,8 @@ PROFILES = {"https://w3id.org/ro/wfrun/process/0.5": "Process Run Crate",
             "https://w3id.org/workflowhub/workflow-ro-crate/1.0": "Workflow RO-Crate"}
 RUN_TERMS = "https://w3id.org/ro/terms/workflow-run/context"
 WORKFLOW = "Snakefile"
-SCENE_RECORDS = ("metrics.json", "provenance.json", "runtime.json")
-SCENE_FOLDERS = ("tables", "figures")
+SCENE_RECORDS = ("provenance.json", "runtime.json")
+SCENE_FOLDERS = (METRICS_FOLDER, "tables", "figures")
 ENGINES = ("snakemake", "dvc")          # listed first among the packages
 DVC_HASH = re.compile(r"[0-9a-f]{32}(\.dir)?")     # a file's md5, a folder's manifest md5
 

@@ -22,7 +22,7 @@ A run is a git revision, a DVC experiment or the workspace; its files are read t
 A scene's verdict is one line: unchanged, changes within noise only, or the signals, worst first.
 
 A run's files are read by ``run_files.py``: a tool scene's scores from its ``scores.json`` (its
-``metrics.json`` is their headline), and earlier revisions' layouts in today's.
+``metrics/`` is their headline), and earlier revisions' layouts in today's.
 """
 
 from __future__ import annotations

@@ -3,10 +3,10 @@ scores at a revision, and the layouts earlier revisions wrote read in today's, s
 across a change of layout compares the same numbers under the same names (the committed results
 of every earlier commit stay readable).
 
-A scene's numbers are in its ``scores.json``; its ``metrics.json`` holds their headline only
-(DVC's metrics). Revisions from before scores.json kept everything in ``metrics.json``, a tool
-scene's with each model's top-level ``mae``, ``rmse`` and ``r2`` the first split's values
-(``current_layout``).
+A scene's numbers are in its ``scores.json``; its ``metrics/`` holds their headline only (DVC's
+metrics, a row per model: core/metric_rows.py). Revisions from before scores.json kept everything
+in ``metrics.json``, a tool scene's with each model's top-level ``mae``, ``rmse`` and ``r2`` the
+first split's values (``current_layout``).
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ def read_run(rev: str | None, repo: str = ".", scenes=tuple(SCENE_TABLE), build:
                     files[name] = None
                 except (DvcException, json.JSONDecodeError) as exc:
                     raise InputError(f"{path} at {rev or 'the workspace'}", str(exc).splitlines()[0]) from None
-            if files["scores"] is not None:                # every number; metrics.json their headline
+            if files["scores"] is not None:                # every number; metrics/ their headline
                 files["metrics"] = files["scores"]
             del files["scores"]
             if files["metrics"] is not None:

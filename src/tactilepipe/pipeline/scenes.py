@@ -9,7 +9,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from tactilepipe.core.errors import ConfigError
+from tactilepipe.core.metric_rows import FOLDER as METRICS_FOLDER
+from tactilepipe.core.metric_rows import metric_files
 from tactilepipe.core.simulated import is_simulated
+from tactilepipe.drift import RUNS as DRIFT_RUNS
 from tactilepipe.pipeline.sessions import SessionSheet
 from tactilepipe.tool.scenes import TOOL_SCENES, scene_label
 
@@ -41,12 +44,30 @@ def figure_files(folder: str, names, study: str) -> list[str]:
             for ext in (".png", ".svg") + ((".csv",) if n in PLOT_DATA[study] else ())]
 
 
-# what each scene ends in, under results/<build>/<scene>/ (the report stages write these names)
-VOLUME_OUTPUTS = ["metrics.json", "scores.json", "provenance.json", "runtime.json"] + \
+def metric_rows(name: str, p: dict) -> list[str]:
+    """A scene's rows of DVC's metrics (core/metric_rows.py): a tool scene's variants, the volume
+    scene's force inputs and its baseline, the drift scene's runs. ``name`` may be the rules'
+    "{scene}" wildcard of the tool scenes."""
+    study = "tool" if name == "{scene}" else scene(name).study
+    if study == "tool":
+        return list(p["tool_train"]["variants"])
+    if study == "volume":
+        return [*p["mlp"]["modalities"], "baseline"]
+    return list(DRIFT_RUNS)
+
+
+def metric_outputs(folder: str, name: str, p: dict) -> list[str]:
+    """The files of a scene's metric rows under its ``folder``."""
+    return [f"{folder}/{f}" for f in metric_files(metric_rows(name, p))]
+
+
+# what each scene ends in, under results/<build>/<scene>/ (the report stages write these names), and
+# its metric rows (metric_rows)
+VOLUME_OUTPUTS = ["scores.json", "provenance.json", "runtime.json"] + \
     [f"tables/{t}.md" for t in ("table1_r2", "table2_volumes", "unseen_volumes", "runtime", "grid_search")] + \
     figure_files("figures", ("r2_by_modality", "mu_r2_curve", "true_vs_estimated", "error_vs_runtime",
                              "pillar_map"), "volume")
-DRIFT_OUTPUTS = ["metrics.json", "scores.json", "provenance.json", "fits.md"] + figure_files("figures", ["drift_curves"], "drift")
+DRIFT_OUTPUTS = ["scores.json", "provenance.json", "fits.md"] + figure_files("figures", ["drift_curves"], "drift")
 TOOL_DATA_FIGURES = ["force_histogram", "force_profiles", "rmse_vs_force", "pressing_strip"]
 
 
@@ -92,7 +113,8 @@ def tool_data_targets(name: str, results: str, p: dict, sheet: SessionSheet) -> 
 
 def tool_model_targets(name: str, results: str, p: dict) -> list[str]:
     """Metrics, tables and figures of every trained model run of a tool scene."""
-    return [f"{results}/{name}/{f}.json" for f in ("metrics", "scores", "provenance", "runtime")] + \
+    return metric_outputs(f"{results}/{name}", name, p) + \
+        [f"{results}/{name}/{f}.json" for f in ("scores", "provenance", "runtime")] + \
         [f"{results}/{name}/tables/{t}.md" for t in tool_model_tables(p)] + \
         figure_files(f"{results}/{name}/figures", tool_model_figures(p), "tool")
 
@@ -106,28 +128,29 @@ def scene_targets(names, results: str, p: dict, sheet: SessionSheet, data_only: 
         if study == "tool":
             out += tool_data_targets(name, results, p, sheet) + ([] if data_only else tool_model_targets(name, results, p))
         else:
-            out += report_outputs(name, results)
+            out += report_outputs(name, results, p)
     return out
 
 
-def report_outputs(name: str, results: str) -> list[str]:
+def report_outputs(name: str, results: str, p: dict) -> list[str]:
     """What the report stage of the volume or drift scene writes."""
-    return [f"{results}/{name}/{f}" for f in {"volume": VOLUME_OUTPUTS, "drift": DRIFT_OUTPUTS}[name]]
+    return metric_outputs(f"{results}/{name}", name, p) + \
+        [f"{results}/{name}/{f}" for f in {"volume": VOLUME_OUTPUTS, "drift": DRIFT_OUTPUTS}[name]]
 
 
 # What the report's result tables call each item (workflow/report/<group>/<caption>.rst), in place
 # of its file name; a tool scene's items share the tool labels (the category names the scene).
 REPORT_LABELS = {
-    "volume": {"metrics": "Metrics of the volume scene", "table1_r2": "Table 1: R² of each force input and the baseline",
+    "volume": {"table1_r2": "Table 1: R² of each force input and the baseline",
                "table2_volumes": "Table 2: estimated volume per true volume",
                "unseen_volumes": "Volumes never seen in training", "runtime": "Fit and prediction time per method",
                "grid_search": "MLP grid search", "r2_by_modality": "R² of each force input and the baseline",
                "mu_r2_curve": "Baseline R² against the friction coefficient μ",
                "true_vs_estimated": "True against estimated volume", "error_vs_runtime": "R² against run time",
                "pillar_map": "Per-pillar forces during a hold"},
-    "drift": {"metrics": "Metrics of the drift scene", "fits": "Drift fits and recalibration interval",
+    "drift": {"fits": "Drift fits and recalibration interval",
               "drift_curves": "Drift with the fitted curves"},
-    "tool": {"metrics": "Metrics of the scene", "qc": "Quality control of the data stages",
+    "tool": {"qc": "Quality control of the data stages",
              "force_histogram": "Histogram of the force labels", "force_profiles": "Force profiles of the trials",
              "rmse_vs_force": "Image change against force", "pressing_strip": "DIGIT frames across one press",
              "sorted_predictions": "Test predictions sorted by true force",
@@ -153,15 +176,16 @@ def report_items(files, scene_name: str, p: dict) -> list[tuple[str, str | None,
     out = []
     for f in files:
         path = Path(f)
-        # a figure's vector twin and data: files beside the report's PNG item, not items of their own
-        if path.name in ("provenance.json", "runtime.json", "scores.json") or (path.parent.name == "figures"
-                                                                 and path.suffix in (".svg", ".csv")):
+        # a figure's vector twin and data: files beside the report's PNG item, not items of their own;
+        # DVC's metric rows: their numbers are in the report's tables
+        if path.name in ("provenance.json", "runtime.json", "scores.json") or path.parent.name == METRICS_FOLDER or \
+                (path.parent.name == "figures" and path.suffix in (".svg", ".csv")):
             out.append((f, None, None, None))
             continue
         if path.suffix == ".md" and path.name != "qc.md":
             out.append((f, None, None, None))
             f, path = str(path.with_suffix(".html")), path.with_suffix(".html")
-        kind = {".png": "figures", ".json": "metrics"}.get(path.suffix, "tables")
+        kind = "figures" if path.suffix == ".png" else "tables"
         # a tool table named like a figure has its own caption
         stem = f"{path.stem}_table" if group == "tool" and path.suffix == ".html" and \
             path.stem in tool_model_figures(p) else path.stem

@@ -1,4 +1,4 @@
-"""Volume scene results: scores.json (every number) and metrics.json (its headline), Tables 1-2,
+"""Volume scene results: scores.json (every number) and metrics/ (its headline), Tables 1-2,
 unseen volumes, run time, and the figures."""
 
 from __future__ import annotations
@@ -12,18 +12,21 @@ import pyarrow.parquet as pq
 
 from tactilepipe.core.atomic import write_json
 from tactilepipe.core.intervals import interval, paired_difference, ranking, ranking_text
+from tactilepipe.core.metric_rows import write_metric_rows
 from tactilepipe.core.metrics import R2_CONSTANT, format_metric
 from tactilepipe.core.simulated import mixed_data_note
 from tactilepipe.core.tables import write_table
 from tactilepipe.volume import figures
 
 
-def headline(scores: dict) -> dict:
-    """metrics.json, DVC's metrics: each input's mean R² over the folds, the best MLP's paired gain
-    on the baseline, and the baseline's μ*. Each metric is a column of `dvc metrics show` and `dvc
-    exp show`; the folds, intervals, tables and QC names are in scores.json beside it."""
-    return {"r2": {m: {"mean": v["mean"]} for m, v in scores["r2"].items()},
-            "best_minus_baseline": {"mean": scores["best_minus_baseline"]["mean"]}, "mu_star": scores["mu_star"]}
+def headline(scores: dict) -> dict[str, dict]:
+    """DVC's metrics, a row per input and one for the baseline (core/metric_rows.py): its mean R²
+    over the folds; the best MLP's row adds its paired gain on the baseline (``r2_gain``), the
+    baseline's its μ*. The folds, intervals, tables and QC names are in scores.json beside them."""
+    rows = {m: {"r2": v["mean"]} for m, v in scores["r2"].items()}
+    rows[scores["best_minus_baseline"]["modality"]]["r2_gain"] = scores["best_minus_baseline"]["mean"]
+    rows["baseline"]["mu_star"] = scores["mu_star"]
+    return rows
 
 
 def _summary(folds: pd.DataFrame, test_train_ratio: float) -> dict:
@@ -54,7 +57,7 @@ def _r2_text(s: dict) -> str:
 
 
 def _json_safe(x):
-    """NaN/inf -> None so metrics.json stays strict JSON ("undefined" has a reason elsewhere)."""
+    """NaN/inf -> None so scores.json stays strict JSON ("undefined" has a reason elsewhere)."""
     if isinstance(x, dict):
         return {k: _json_safe(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
@@ -201,7 +204,7 @@ def build_report(res: Path, p: dict, raw_root: Path, shard_root: Path) -> dict:
     } | ({"mixed_data": mixed} if mixed else {})
     metrics = _json_safe(metrics)
     write_json(res / "scores.json", metrics)
-    write_json(res / "metrics.json", headline(metrics))
+    write_metric_rows(res, headline(metrics))
     # run times change on every run: kept apart so a metrics diff shows what the results did
     write_json(res / "runtime.json", _json_safe({r.method: {"fit_s": r.fit_s,
                                                              "predict_us_per_sample": r.predict_us_per_sample}

@@ -9,7 +9,7 @@ Two kinds of evidence, neither of which comes from the label:
   equilibrium: both pads squeeze with the same normal force). A lift whose value lies further
   from the session's median than ``outlier_k`` robust standard deviations (1.4826 x MAD), and more
   than the measure's floor, stands out: a sensor offset, a gain on one sensor, a loose cable. It
-  is left out of the data set with the evidence in ``qc.csv`` and ``metrics.json``. The grip
+  is left out of the data set with the evidence in ``qc.csv`` and ``scores.json``. The grip
   level itself is not compared: under a position or re-tightening grip it follows the load.
 - **The label against the weight** (``check_labels``). Off the table the pads carry the container
   and its water, (m_container + rho V) g. Over the session's kept lifts, a robust line

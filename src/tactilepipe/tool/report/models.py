@@ -1,4 +1,4 @@
-"""Tool scene results: scores.json, metrics.json, tables and the model figures, from the trained runs.
+"""Tool scene results: scores.json, metrics/, tables and the model figures, from the trained runs.
 
 Runs live in results/<build>/<scene>/models/<run>/ (eval.json, predictions.parquet); their names are
 explained in ``tool/runs.py``. A model's score (``mae``, ``rmse``, ``r2``) is its mean over the
@@ -8,8 +8,8 @@ and each variant's verdict against the baselines that have its information (its 
 what the per-run figures and the ``variants`` table draw: its values sit under ``first_split``,
 named so, and every figure drawn from it names it.
 
-scores.json holds all of it; metrics.json (DVC's metrics: `dvc metrics show`, `dvc exp show`) only
-the headline, each variant's mean scores, so that a comparison of runs fits a terminal.
+scores.json holds all of it; metrics/<variant>.json (DVC's metrics: `dvc metrics show`, `dvc exp
+show`) only the headline, each variant's mean scores, a row each (core/metric_rows.py).
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import pandas as pd
 from tactilepipe.core.atomic import write_json
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.core.intervals import interval
+from tactilepipe.core.metric_rows import write_metric_rows
 from tactilepipe.core.tables import write_table
 from tactilepipe.tool.report import figures_models as fm
 from tactilepipe.tool.report import verdicts
@@ -96,7 +97,7 @@ def baseline_draws(data: ToolFrames, splits: list[dict]) -> list[dict[str, dict]
 
 def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_variants: dict, runs: list[str],
                        equivalence_margin: float) -> dict:
-    """metrics.json, tables and figures of ``runs``; ``tool_train`` and ``tool_variants`` are the
+    """scores.json, metrics/, tables and figures of ``runs``; ``tool_train`` and ``tool_variants`` are the
     resolved parameter groups (tool_train.variants a list: core.config.resolve spells out "all");
     ``equivalence_margin`` is params.yaml's tool_report.equivalence_margin (tool/report/verdicts.py)."""
     label = scene_label(scene)
@@ -122,7 +123,7 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
     scores |= {b: {m: [draw[b][m] for draw in base] for m in verdicts.METRICS} for b in BASELINES}
     summary = {name: verdicts.over_draws(s, ratio) for name, s in scores.items()}
 
-    # --- scores.json, metrics.json ----------------------------------------------------------------
+    # --- scores.json, metrics/ --------------------------------------------------------------------
     metrics = {}
     for v in variants:
         e0 = evals[plan.repeats[v][0]]
@@ -161,7 +162,7 @@ def build_model_report(scene_dir: Path, scene: str, tool_train: dict, tool_varia
         metrics["loto"] = {"per_tool": per_tool, "over_tools": {
             m: interval([p[m] for p in per_tool.values()], test_train_ratio=loto_ratio) for m in verdicts.METRICS}}
     write_json(scene_dir / "scores.json", metrics)
-    write_json(scene_dir / "metrics.json", headline(metrics, variants))
+    write_metric_rows(scene_dir, headline(metrics, variants))
 
     # --- tables ---------------------------------------------------------------------------------
     split0_rows = []
@@ -244,11 +245,10 @@ def _first_split(name: str, e: dict) -> dict:
     return {"split": name} | {k: e[k] for k in FIRST_SPLIT_KEYS}
 
 
-def headline(scores: dict, variants: list[str]) -> dict:
-    """metrics.json, DVC's metrics: each variant's mean scores over the repeated splits and their
-    count. The intervals, the first split, the baselines and the verdicts are in scores.json: each
-    metric is a column of `dvc metrics show` and `dvc exp show`, and all of them buried the scores."""
-    return {v: {m: scores[v][m] for m in verdicts.METRICS} for v in variants} | {"repeats": scores["repeats"]}
+def headline(scores: dict, variants: list[str]) -> dict[str, dict]:
+    """DVC's metrics, a row per variant (core/metric_rows.py): its mean scores over the repeated
+    splits. The intervals, the first split, the baselines and the verdicts are in scores.json."""
+    return {v: {m: scores[v][m] for m in verdicts.METRICS} for v in variants}
 
 
 def _interval_table(summary: dict[str, dict]) -> pd.DataFrame:

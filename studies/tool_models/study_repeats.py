@@ -1,0 +1,65 @@
+"""How the study's verdicts depend on the number of repeated splits, read from a build (no training).
+
+A repeat's split and model seed depend only on its index (tool/splits.py, tool/runs.py), so the
+first K repeats of a build with more are exactly what a build with ``tool_split.repeats: K`` trains.
+This judges every ordering of the tool report (tool/report/verdicts.py, with the margin taken from
+those K repeats as the report takes it) on the first K per-split scores of each scene's
+``scores.json``, for each K from 3 to the build's repeats, and prints how many are decided.
+
+    python studies/tool_models/study_repeats.py [--build results/default] [--min-repeats 3]
+
+Reads two JSON files; runs in about a second.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from tactilepipe.tool.report.verdicts import METRICS, PAPER_ORDERINGS, judge, margin_n
+
+VARIANTS = ("full", "no_gam", "no_ref", "single")
+BASELINE = "tactile_rmse_linear"
+SHORT = {"holds": "holds", "reversed": "reversed", "equivalent": "equiv.", "undecided": "-"}
+
+
+def first_k(scores: dict, k: int) -> dict[str, dict[str, list[float]]]:
+    """Each variant's and the like-for-like baseline's per-split scores, the first ``k`` splits."""
+    out = {v: {m: scores[v]["per_split"][m][:k] for m in METRICS} for v in VARIANTS}
+    out[BASELINE] = {m: scores["baselines"][BASELINE]["per_split"][m][:k] for m in METRICS}
+    return out
+
+
+def verdicts(scores: dict, scene: str, k: int) -> list[tuple[str, str]]:
+    """(claim, verdict) of each ordering of ``scene`` and of full against the baseline, on ``k`` splits."""
+    sub = first_k(scores, k)
+    margin = margin_n(sub, scores["equivalence_margin"]["fraction_of_full_mae"])
+    return [(f"{scene.removeprefix('tool_')}: {better} < {worse}",
+             judge(better, worse, sub, margin, scores["test_train_ratio"])["verdict"])
+            for better, worse in PAPER_ORDERINGS[scene] + [("full", BASELINE)]]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--build", type=Path, default=Path("results/default"))
+    parser.add_argument("--min-repeats", type=int, default=3)
+    args = parser.parse_args(argv)
+    scores = {s: json.loads((args.build / s / "scores.json").read_text()) for s in PAPER_ORDERINGS}
+    repeats = min(s["repeats"] for s in scores.values())
+    rows = []
+    for k in range(max(args.min_repeats, 2), repeats + 1):
+        judged = [v for scene in PAPER_ORDERINGS for v in verdicts(scores[scene], scene, k)]
+        orderings = [v for claim, v in judged if BASELINE not in claim]
+        rows.append((k, sum(v != "undecided" for v in orderings), len(orderings), judged))
+    claims = [claim for claim, _ in rows[0][3]]
+    print(f"Verdicts on the first K of {repeats} repeated splits ({args.build}); '-': undecided\n")
+    print("| K | decided | " + " | ".join(claims) + " |")
+    print("|---|---|" + "---|" * len(claims))
+    for k, decided, total, judged in rows:
+        print(f"| {k} | {decided} of {total} | " + " | ".join(SHORT[v] for _, v in judged) + " |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
