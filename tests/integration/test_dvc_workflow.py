@@ -304,6 +304,10 @@ def test_experiments_rerun_only_the_stages_of_the_changed_params(repo, new_sessi
     assert variants == {"old": ["full", "no_ref"], "new": ["full"]}, params
     show = dvc(wd, "exp", "show", "--md").stdout
     assert "mu-variants" in show and "baseline.mu_max" in show and "mu_star" in show, show[:2000]
+    # only what differs: the changed parameters and the scores that moved, not every model's row
+    changed = dvc(wd, "exp", "show", "--only-changed", "--md").stdout.splitlines()[0]
+    assert "baseline.mu_max" in changed and "mu_star" in changed and "scale" not in changed, changed
+    assert "fx_fy_fz.json:r2" not in changed, changed          # the MLPs did not re-run
     exp_diff = json.loads(dvc(wd, "exp", "diff", "HEAD", "mu-variants", "--json").stdout)
     assert exp_diff["params"]["params.yaml"]["baseline.mu_max"]["new"] == 0.35
     assert f"{SMOKE}/volume/metrics/baseline.json" in exp_diff["metrics"]
