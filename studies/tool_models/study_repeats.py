@@ -1,10 +1,12 @@
 """How the study's verdicts depend on the number of repeated splits, read from a build (no training).
 
-A repeat's split and model seed depend only on its index (tool/splits.py, tool/runs.py), so the
-first K repeats of a build with more are exactly what a build with ``tool_split.repeats: K`` trains.
-This judges every ordering of the tool report (tool/report/verdicts.py, with the margin taken from
-those K repeats as the report takes it) on the first K per-split scores of each scene's
-``scores.json``, for each K from 3 to the build's repeats, and prints how many are decided.
+A repeat's split and model seed depend only on its index (tool/data/splits.py, tool/runs.py), so
+the first K repeats of a build with more are exactly what a build with ``tool_split.repeats: K``
+trains. This judges every ordering of the tool report (tool/report/verdicts.py, with the margin
+taken from those K repeats as the report takes it) on the first K per-split scores of each scene's
+``scores.json``, for each K from --min-repeats to the build's repeats, and prints how many are
+decided. The intervals use the whole build's n_test/n_train; a K-repeat build uses its own K
+splits' mean, which moves a half-width by well under 1 % here (0.249 at 12 and 16 on normal force).
 
     python studies/tool_models/study_repeats.py [--build results/default] [--min-repeats 3]
 
@@ -46,7 +48,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--min-repeats", type=int, default=3)
     args = parser.parse_args(argv)
     scores = {s: json.loads((args.build / s / "scores.json").read_text()) for s in PAPER_ORDERINGS}
+    missing = {s: [v for v in VARIANTS if v not in m] for s, m in scores.items()}
+    if any(missing.values()):
+        raise SystemExit(f"study_repeats: {args.build} lacks variants {missing}: it judges builds of all four")
     repeats = min(s["repeats"] for s in scores.values())
+    if repeats < max(args.min_repeats, 2):
+        raise SystemExit(f"study_repeats: {args.build} has {repeats} repeats, fewer than --min-repeats {args.min_repeats}")
     rows = []
     for k in range(max(args.min_repeats, 2), repeats + 1):
         judged = [v for scene in PAPER_ORDERINGS for v in verdicts(scores[scene], scene, k)]

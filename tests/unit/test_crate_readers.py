@@ -65,3 +65,6 @@ def test_a_build_recorded_with_the_old_session_hash_gets_a_crate_without_dvc_md5
     assert crate.mainEntity["version"] == "e892075"
     given = {o["name"]: o["value"] for o in run["object"] if o.type == "PropertyValue"}
     assert given == {"volume-split: seed": 3, "volume-split: folds.k": 5}
+    # an older build's one metrics file is among the scene's records, copied in
+    assert "results/old/volume/metrics.json" in {f.id for f in run["result"]}
+    assert (out / "results/old/volume/metrics.json").read_text() == '{"r2": {"fz": {"mean": 0.9}}}\n'

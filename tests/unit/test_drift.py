@@ -271,3 +271,13 @@ def test_a_recording_clipped_at_the_sensor_limit_is_refused(tmp_path):
     frame["gfz"] = sum(frame[f"fz{i}"] for i in range(9))
     pd.DataFrame(frame).to_parquet(path)
     assert recordings.recording_reading(path, "loaded", 4.9)["n_loaded"] > 200
+
+
+def test_a_session_without_a_run_has_a_metric_row_of_nulls_for_it():
+    """DVC declares every run's row; a drift session that recorded only one run still has both,
+    the missing one empty (None in JSON), not a row copied from the other."""
+    scores = {"drift_30min_n": {"unloaded": 0.31}, "recalibration_interval_min": {"unloaded": 4.8}}
+    assert analyse.headline(scores) == {
+        "unloaded": {"drift_30min_n": 0.31, "recalibration_interval_min": 4.8},
+        "loaded": {"drift_30min_n": None, "recalibration_interval_min": None}}
+

@@ -20,9 +20,9 @@ DVC_YAML = """stages:
   unpack:
     cmd: tactilepipe study000-unpack raw/downloads/data.zip
 """
-RULE_INPUTS = {"volume": ["results/smoke/volume/metrics.json", "results/smoke/volume/tables/t1.md"],
-               "tool_normal": ["results/smoke/tool_normal/metrics.json"],
-               "tool_shear": ["results/smoke/tool_shear/metrics.json"]}
+RULE_INPUTS = {"volume": ["results/smoke/volume/metrics/fy.json", "results/smoke/volume/tables/t1.md"],
+               "tool_normal": ["results/smoke/tool_normal/metrics/full.json"],
+               "tool_shear": ["results/smoke/tool_shear/metrics/full.json"]}
 
 
 def files_of(target: str) -> list[str]:

@@ -65,10 +65,10 @@ DATA_PLOTS = {
 
 
 def is_metric(f: str) -> bool:
-    """A file DVC shows as metrics: a scene's metric row (metrics/<row>.json, core/metric_rows.py),
-    or study 000's metrics.json."""
+    """A file DVC shows as metrics: a scene's metric row (metrics/<row>.json, core/metric_rows.py).
+    Study 000's stages below declare their own metrics.json."""
     path = Path(f)
-    return path.suffix == ".json" and (path.parent.name == METRICS_FOLDER or path.name == "metrics.json")
+    return path.suffix == ".json" and path.parent.name == METRICS_FOLDER
 
 
 # kept in git beside the metrics, but not metrics: what made them (provenance), how long it took

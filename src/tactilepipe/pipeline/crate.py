@@ -32,7 +32,7 @@ PROFILES = {"https://w3id.org/ro/wfrun/process/0.5": "Process Run Crate",
             "https://w3id.org/workflowhub/workflow-ro-crate/1.0": "Workflow RO-Crate"}
 RUN_TERMS = "https://w3id.org/ro/terms/workflow-run/context"
 WORKFLOW = "Snakefile"
-SCENE_RECORDS = ("provenance.json", "runtime.json")
+SCENE_RECORDS = ("scores.json", "provenance.json", "runtime.json", "metrics.json")   # metrics.json: older builds
 SCENE_FOLDERS = (METRICS_FOLDER, "tables", "figures")
 ENGINES = ("snakemake", "dvc")          # listed first among the packages
 DVC_HASH = re.compile(r"[0-9a-f]{32}(\.dir)?")     # a file's md5, a folder's manifest md5
