@@ -113,8 +113,8 @@ def main() -> None:
     args = ap.parse_args()
     base = load_params(REPO / "params.yaml", {"scale": "default"})
     print(f"kNN (k={args.k}) test MAE in N, mean over {args.repeats} splits; differences paired, worse - better")
-    print("| condition | target | full | single | no_ref | no_ref - full | no_ref - single |")
-    print("|---|---|---|---|---|---|---|")
+    print("| condition | target | full | single | no_ref | no_ref - full | no_ref - single | single - full |")
+    print("|---|---|---|---|---|---|---|---|")
     for name, change in CONDITIONS.items():
         params = copy.deepcopy(base)
         for group, values in change.items():
@@ -124,7 +124,8 @@ def main() -> None:
         for label in ("normal", "shear"):
             s = scores(data, label, args.repeats, args.k)
             print(f"| {name} | {label} | {s['full'].mean():.3f} | {s['single'].mean():.3f} | {s['no_ref'].mean():.3f} | "
-                  f"{difference(s['no_ref'], s['full'])} | {difference(s['no_ref'], s['single'])} |", flush=True)
+                  f"{difference(s['no_ref'], s['full'])} | {difference(s['no_ref'], s['single'])} | "
+                  f"{difference(s['single'], s['full'])} |", flush=True)
         print(f"<!-- {name}: {time.time() - t0:.0f} s -->", flush=True)
 
 
