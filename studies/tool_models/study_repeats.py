@@ -19,27 +19,30 @@ import argparse
 import json
 from pathlib import Path
 
-from tactilepipe.tool.report.verdicts import METRICS, PAPER_ORDERINGS, judge, margin_n
+from tactilepipe.tool.report.verdicts import METRICS, PAPER_ORDERINGS, judge, margin_n, paper_orderings
 
-VARIANTS = ("full", "no_gam", "no_ref", "single")
-BASELINE = "tactile_rmse_linear"
+# the models the study's orderings name (the report's own list), and full's like-for-like baseline
+VARIANTS = sorted({v for pairs in PAPER_ORDERINGS.values() for pair in pairs for v in pair})
 SHORT = {"holds": "holds", "reversed": "reversed", "equivalent": "equiv.", "undecided": "-"}
 
 
 def first_k(scores: dict, k: int) -> dict[str, dict[str, list[float]]]:
-    """Each variant's and the like-for-like baseline's per-split scores, the first ``k`` splits."""
+    """Each variant's and full's like-for-like baseline's per-split scores, the first ``k`` splits."""
+    baseline = scores["full"]["like_for_like_baseline"]
     out = {v: {m: scores[v]["per_split"][m][:k] for m in METRICS} for v in VARIANTS}
-    out[BASELINE] = {m: scores["baselines"][BASELINE]["per_split"][m][:k] for m in METRICS}
+    out[baseline] = {m: scores["baselines"][baseline]["per_split"][m][:k] for m in METRICS}
     return out
 
 
 def verdicts(scores: dict, scene: str, k: int) -> list[tuple[str, str]]:
-    """(claim, verdict) of each ordering of ``scene`` and of full against the baseline, on ``k`` splits."""
+    """(claim, verdict) of each ordering of ``scene`` and of full against its baseline, on ``k`` splits,
+    judged as the report judges them (verdicts.paper_orderings, verdicts.judge)."""
     sub = first_k(scores, k)
     margin = margin_n(sub, scores["equivalence_margin"]["fraction_of_full_mae"])
-    return [(f"{scene.removeprefix('tool_')}: {better} < {worse}",
-             judge(better, worse, sub, margin, scores["test_train_ratio"])["verdict"])
-            for better, worse in PAPER_ORDERINGS[scene] + [("full", BASELINE)]]
+    ratio = scores["test_train_ratio"]
+    judged = paper_orderings(scene, sub, ratio, margin) + \
+        [judge("full", scores["full"]["like_for_like_baseline"], sub, margin, ratio)]
+    return [(f"{scene.removeprefix('tool_')}: {j['better']} < {j['worse']}", j["verdict"]) for j in judged]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -57,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for k in range(max(args.min_repeats, 2), repeats + 1):
         judged = [v for scene in PAPER_ORDERINGS for v in verdicts(scores[scene], scene, k)]
-        orderings = [v for claim, v in judged if BASELINE not in claim]
+        orderings = [v for claim, v in judged if claim.split(" < ")[1] in VARIANTS]
         rows.append((k, sum(v != "undecided" for v in orderings), len(orderings), judged))
     claims = [claim for claim, _ in rows[0][3]]
     print(f"Verdicts on the first K of {repeats} repeated splits ({args.build}); '-': undecided\n")

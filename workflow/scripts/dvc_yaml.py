@@ -238,9 +238,7 @@ def generate(params: dict) -> str:
         stage["outs"] += [{dvc_path(f): {"cache": False}} for f in special if Path(f).name in UNCACHED_OUTS]
         # a scene's metric rows as their folder: DVC shows each file in it as a row, and a row that
         # comes or goes with params.yaml (a variant, an input) needs no new dvc.yaml
-        metrics = [{dvc_path(f): {"cache": False}}
-                   for f in sorted({str(Path(f).parent) if Path(f).parent.name == METRICS_FOLDER else f
-                                    for f in special if is_metric(f)})]
+        metrics = [{dvc_path(f): {"cache": False}} for f in sorted({str(Path(f).parent) for f in special if is_metric(f)})]
         if metrics:
             stage["metrics"] = metrics
         doc["stages"][name] = stage
