@@ -75,6 +75,12 @@ def test_smoke_builds_every_target_of_both_scenes(smoke_build: Path):
         for fig in ("pressing_strip", "rmse_vs_force", "force_profiles", "force_histogram"):
             assert (results(wd) / f"{scene}/figures/{fig}.png").read_bytes()[:4] == b"\x89PNG"
         assert "| trial |" in (results(wd) / f"{scene}/qc.md").read_text()
+        # every simulated trial of the scene's kind is kept: none left out by a witness or the clock
+        qc = json.loads((results(wd) / f"{scene}/data/qc.json").read_text())
+        kind = scene.removeprefix("tool_")
+        simulated = sorted(p.name for p in (wd / "raw/tool/sim-smoke").iterdir() if f"_{kind}" in p.name)
+        assert qc["dropped_trials"] == [] and simulated, (scene, qc["dropped_trials"])
+        assert sorted(t["trial"].split("/")[-1] for t in qc["trials"]) == simulated, scene
         # every model variant trained and evaluated, with the report's tables and figures
         tm = json.loads((results(wd) / f"{scene}/scores.json").read_text())
         assert tm["repeats"] == 2 and tm["splits"] == ["trial", "trial_r1"]
@@ -231,14 +237,16 @@ def test_a_named_build_of_a_simulated_session_builds_to_the_end(tmp_path: Path):
     """A named build shares its scale's simulated session, and the simulator's stamp with it
     (results/<scale>/params/, decision 0025): its report reads that stamp for provenance.json."""
     wd = copy_project(tmp_path)
-    snakemake(wd, "--config", "scale=smoke", "build=alt", "scenes=[drift]")
+    snakemake(wd, "--config", "scale=smoke", "build=alt", "scenes=[drift,volume]")
     assert (results(wd, "alt") / "drift/metrics/loaded.json").is_file()
+    volume = json.loads((results(wd, "alt") / "volume/provenance.json").read_text())
+    assert "volume-simulate" in volume["stages"] and (results(wd, "alt") / "volume/metrics/baseline.json").is_file()
     prov = json.loads((results(wd, "alt") / "drift/provenance.json").read_text())
     stamp = json.loads((results(wd, "smoke") / "params/drift-simulate.json").read_text())
     assert prov["stages"]["drift-simulate"]["params"]["simulate_drift"] == stamp["values"]["simulate_drift"]
     assert stamp["values"]["simulate_drift"]["rate_hz"] == 100                # the smoke scale's, not the default's
     assert not (results(wd, "alt") / "params/drift-simulate.json").exists()   # one simulator stamp per scale
-    assert _ran(snakemake(wd, "-n", "--config", "scale=smoke", "build=alt", "scenes=[drift]")) == set()
+    assert _ran(snakemake(wd, "-n", "--config", "scale=smoke", "build=alt", "scenes=[drift,volume]")) == set()
 
 
 @pytest.mark.parametrize("override, expected", [

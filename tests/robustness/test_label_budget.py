@@ -63,6 +63,7 @@ def test_a_session_mixing_30_and_60_fps_trials_keeps_every_trial(tmp_path):
     base = harness.session(tmp_path / "raw" / "lab", harness.parameters(),
                            rate_of=lambda spec: 60.0 if spec.trial_index == 1 else 30.0)
     result = harness.run_case(base, tmp_path / "case", {}, via_cli=True)
+    assert len(result) == 9
     _all_kept_within_budget(result)
 
 
@@ -77,10 +78,15 @@ FAULTS = {
     "zero drifting +1 N within the trial": (lambda t, b: fault.drift(t, _cal(b), 1.0), "witness 'zero drift'"),
     "zero drifting -1 N within the trial": (lambda t, b: fault.drift(t, _cal(b), -1.0), "witness 'zero drift'"),
     "arrival stamps 0.2 s late": (lambda t, b: fault.arrivals_late(t, 0.2), "witness 'clock'"),
+    "arrival stamps 0.4 s late": (lambda t, b: fault.arrivals_late(t, 0.4), "witness 'clock'"),
+    "port-open stamp 0.2 s late, no arrival stamps": (lambda t, b: fault.port_open_late(t, 0.2), None),
     "port-open stamp 0.3 s late, no arrival stamps": (lambda t, b: fault.port_open_late(t, 0.3), None),
+    "port-open stamp 0.4 s late, no arrival stamps": (lambda t, b: fault.port_open_late(t, 0.4), None),
     "another trial's samples": (lambda t, b: fault.samples_of(t, t.parent / OTHER), "witness '(clock|images)'"),
     "open gauge wire": (lambda t, b: fault.open_gauge(t, 2), "witness 'gauge wire'"),
     "exposure step on one camera": (lambda t, b: fault.exposure_step(t, "digit_left", 1.4), "witness 'exposure'"),
+    "exposure step on both cameras": (lambda t, b: [fault.exposure_step(t, s, 1.4) for s in ("digit_left", "digit_right")],
+                                      "witness 'exposure'"),
     "every second frame repeated": (lambda t, b: fault.repeated_frames(t), None),
     "cameras swapped": (lambda t, b: fault.swap_cameras(t), None),      # no label changes: docs/robustness.md
     "one camera for both fingers": (lambda t, b: fault.one_camera_twice(t), "hold one camera's frames"),
@@ -88,9 +94,12 @@ FAULTS = {
 # Faults the witnesses do not catch yet, each a measured overrun (docs/robustness.md lists them):
 # the test fails the day one is caught, so the list stays true.
 KNOWN_OVERRUNS = {
+    "gauge gain x3": lambda t, b: chain_fault.gauge_gain(t, 3.0),
     "gauge gain x1.5": lambda t, b: chain_fault.gauge_gain(t, 1.5),
     "gauge gain x0.5": lambda t, b: chain_fault.gauge_gain(t, 0.5),
+    "gauge gain x0.33": lambda t, b: chain_fault.gauge_gain(t, 0.33),
     "arrival stamps 50 ms late": lambda t, b: fault.arrivals_late(t, 0.05),
+    "arrival stamps 0.1 s late": lambda t, b: fault.arrivals_late(t, 0.1),
 }
 
 
@@ -111,5 +120,5 @@ def test_a_fault_is_left_out_with_its_cause_or_stays_within_the_budget(clean, tm
 @pytest.mark.parametrize("name", sorted(KNOWN_OVERRUNS))
 def test_a_known_overrun_is_still_an_overrun(clean, tmp_path, name):
     result = harness.run_case(clean["base"], tmp_path, {}, lambda t: KNOWN_OVERRUNS[name](t, clean["base"]), VICTIM,
-                              shards=clean["shards"])
+                              via_cli=True, shards=clean["shards"])
     assert result[VICTIM]["status"] == "kept" and result[VICTIM]["over"], result[VICTIM]

@@ -148,6 +148,18 @@ def test_a_calibration_cell_x10_refuses_the_trial_naming_nano17_cal_and_the_cell
     assert "~10x" in proc.stderr and not (tmp_path / "t.parquet").exists()
 
 
+def test_a_transposed_calibration_refuses_the_trial_naming_nano17_cal(lab, tmp_path):
+    """A matrix typed in with rows for columns mixes forces and torques (labels off by up to the
+    torque rows' scale): tool-ingest refuses the trial in one line naming the file and the cause."""
+    name, trial = _faulty(lab, tmp_path)
+    fault.calibration_transposed(trial.parent)
+    proc = cli("tool-ingest", *CLI_PARAMS, str(trial), "--format", "native", "--out", str(tmp_path / "t.parquet"))
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr, proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert str(trial.parent / "nano17.cal") in proc.stderr and "the matrix looks transposed" in proc.stderr, proc.stderr
+    assert not (tmp_path / "t.parquet").exists()
+
+
 @pytest.mark.parametrize("declare", [False, True], ids=["declared_30", "declared_60"])
 def test_frames_stamped_at_60_fps_over_30_fps_frames_are_named(lab, tmp_path, declare):
     name, trial = _faulty(lab, tmp_path)

@@ -43,7 +43,9 @@ VARIATIONS = {
     "light presses": {"simulate_tool": {"press": {"peak_force_n": [0.3, 0.8]}}},
     "slow ramps": {"simulate_tool": {"frames_per_trial": 150, "press": {"rise_s": [2.0, 2.8], "fall_s": [1.5, 2.0],
                                                                          "hold_s": [0.0, 0.3]}}},
-    "stiff gels": {"simulate_tool": {"grasp": {"e_star_mpa": 4.0}}},
+    # the simulated gel's modulus is 1 MPa: 3 and 6 times stiffer barely move the images
+    "stiff gels x3": {"simulate_tool": {"grasp": {"e_star_mpa": 3.0}}},
+    "stiff gels x6": {"simulate_tool": {"grasp": {"e_star_mpa": 6.0}}},
 }
 
 

@@ -1,6 +1,6 @@
 """Faults of a real rig's force chain, injected into a native trial as the rig would have recorded
 them: an ADC reference other than 5 V, a gauge amplifier's gain, a zero taken off true zero, rows
-of nano17.cal swapped or negated, a cell of it x10, frames.csv stamped at another rate. Each rewrites the trial's
+of nano17.cal swapped or negated, a cell of it x10, the whole of it transposed, frames.csv stamped at another rate. Each rewrites the trial's
 own files (or its own session's nano17.cal), nothing else."""
 
 from __future__ import annotations
@@ -74,6 +74,12 @@ def calibration_cell(session: Path, axis: str, factor: float) -> str:
     matrix[i, j] *= factor
     layout.write_calibration(session / "nano17.cal", matrix)
     return f"{axis},g{j + 1}"
+
+
+def calibration_transposed(session: Path) -> None:
+    """Rewrite the session's nano17.cal transposed (rows read as columns when it was typed in)."""
+    matrix = layout.read_calibration(session / "nano17.cal")
+    layout.write_calibration(session / "nano17.cal", matrix.T.copy())
 
 
 def frame_rate(trial: Path, factor: float, declare: bool = False) -> None:
