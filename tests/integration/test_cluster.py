@@ -21,7 +21,8 @@ import torch
 from tactilepipe.core.config import load_params
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.core.parameters.resources import RuleResources
-from tactilepipe.pipeline.estimate import estimate_report, forward_flops, planned_pairs, training_flops
+from tactilepipe.pipeline.estimate import estimate_report
+from tactilepipe.tool.estimate import forward_flops, planned_pairs, training_flops
 from tactilepipe.pipeline.stage_rules import stage_rules
 
 from support.project import BIN, REPO, SMOKE, copy_project, results, run

@@ -179,9 +179,12 @@ def test_generator_lists_each_stage_code_closure_and_declared_params():
     assert not drift_code & {"src/tactilepipe/cli/volume_simulate.py", "src/tactilepipe/cli/tool_simulate.py"}
     assert "src/tactilepipe/cli/drift_report.py" not in stages["volume"]["deps"]
     # its code, and the workflow's own library (the session sheet, scenes, stamps: as common.smk)
-    library = set.intersection(*({d for d in s["deps"] if d.startswith("src/tactilepipe/pipeline/")}
-                                 for s in stages.values()))
-    assert {"src/tactilepipe/pipeline/sessions.py", "src/tactilepipe/pipeline/stamp_keeper.py"} <= library
+    # with the studies' contracts it reads (each study's sessions, scenes and outputs)
+    own = lambda d: d.startswith("src/tactilepipe/pipeline/") or d.endswith("/contract.py") or \
+        d in ("src/tactilepipe/studies.py", "src/tactilepipe/core/study.py")
+    library = set.intersection(*({d for d in s["deps"] if own(d)} for s in stages.values()))
+    assert {"src/tactilepipe/pipeline/sessions.py", "src/tactilepipe/pipeline/stamp_keeper.py",
+            "src/tactilepipe/studies.py", "src/tactilepipe/tool/contract.py"} <= library
     assert drift_code == set(codedeps.stage_files("drift-simulate")) | library
     assert "src/tactilepipe/tool/model/network.py" in stages["tool_models"]["deps"]
     # every rule runs `python -m tactilepipe`: the package's __main__ is code of every stage

@@ -62,8 +62,8 @@ def test_the_audit_names_a_read_whose_input_a_rule_no_longer_declares(smoke_buil
     wd = tmp_path / "project"
     shutil.copytree(smoke_build, wd, copy_function=os.link, symlinks=True)
     _edit(wd / "workflow/rules/drift.smk", '        raw=session_files("drift"),\n', "")
-    _edit(wd / "src/tactilepipe/pipeline/sessions.py",
-          'return [f"{self.folder(\'tool\', r.session)}/nano17.cal", f"{r.path}/meta.json"]', 'return [f"{r.path}/meta.json"]')
+    _edit(wd / "src/tactilepipe/tool/contract.py",
+          'return [f"{folder}/{CALIBRATION}", f"{recording.path}/meta.json"]', 'return [f"{recording.path}/meta.json"]')
     problems = undeclared(_smoke_audit(smoke_build).reads(), declared_jobs(wd, SNAKEMAKE))
     drift = [files for job, files in problems.items() if job.startswith("drift_report:")]
     assert drift and "raw/drift/sim-smoke/loaded_t05.bag" in drift[0], problems.keys()

@@ -153,13 +153,13 @@ def test_crosstalk_adds_the_set_fraction_of_the_shear(exact_sim, fraction):
 # --- configuration --------------------------------------------------------------------------------
 
 def test_capped_container_needs_headspace(params_path):
-    from tactilepipe.pipeline.studies import load_params
+    from tactilepipe.studies import load_params
     with pytest.raises(ConfigError, match="container_capacity_ml"):
         load_params(params_path, {"simulate_volume": {"position": {"container_capacity_ml": 300.0}}})
 
 
 def test_a_regime_may_only_change_grasp_keys(params_path):
-    from tactilepipe.pipeline.studies import load_params
+    from tactilepipe.studies import load_params
     with pytest.raises(ConfigError, match="volume_regimes"):
         load_params(params_path, {"volume_regimes": {"heavy": {"container_mass_g": 100.0}}})
 

@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from tactilepipe.core.errors import ConfigError, InputError
-from tactilepipe.pipeline.studies import load_params      # as the workflow validates: every study's checks
+from tactilepipe.studies import load_params      # as the workflow validates: every study's checks
 from tactilepipe.volume.dataset import build_dataset
 
 from support.project import REPO

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from tactilepipe.papillarray import messages as pa
-from tactilepipe.pipeline.studies import load_params      # every study's checks too: none may raise anything else
+from tactilepipe.studies import load_params      # every study's checks too: none may raise anything else
 from tactilepipe.core.errors import ConfigError, InputError
 from tactilepipe.papillarray.shards import ingest_bag
 from tactilepipe.tool.formats.native_layout import TrialMeta, read_calibration, read_frame_index

@@ -49,7 +49,7 @@ PARSER_MODULES = ("src/tactilepipe/cli/", "src/tactilepipe/tool/scenes.py", "src
                   "src/tactilepipe/tool/model/__init__.py", "src/tactilepipe/tool/model/variants.py",
                   "src/tactilepipe/tool/checks.py", "src/tactilepipe/volume/__init__.py",
                   "src/tactilepipe/volume/checks.py", "src/tactilepipe/papillarray/__init__.py",
-                  "src/tactilepipe/papillarray/checks.py", "src/tactilepipe/pipeline/studies.py",
+                  "src/tactilepipe/papillarray/checks.py", "src/tactilepipe/studies.py",
                   # plain data those modules name: the model vocabulary, the simulated-session
                   # convention (volume/checks.py), the rig's modes and baud (cli/rig.py's choices)
                   "src/tactilepipe/core/tool_vocabulary.py", "src/tactilepipe/core/simulated.py",

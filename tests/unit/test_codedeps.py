@@ -15,7 +15,8 @@ import pytest
 from tactilepipe.cli import main as cli
 from tactilepipe.cli.registry import command
 from tactilepipe.core.errors import ConfigError, TactilepipeError
-from tactilepipe.pipeline import codedeps, studies
+from tactilepipe import studies
+from tactilepipe.pipeline import codedeps
 
 from support.project import REPO
 
@@ -69,14 +70,14 @@ def test_a_tool_stage_holds_no_volume_drift_or_papillarray_code_nor_their_checks
         assert _under(stage, "volume", "drift", "papillarray") == [], stage
         code = _code(stage)
         assert VOLUME_CHECK[1] not in code and AXES_CHECK[1] not in code, stage
-        assert "tactilepipe.pipeline.studies" not in codedeps.stage_modules(stage), stage
+        assert "tactilepipe.studies" not in codedeps.stage_modules(stage), stage
 
 
 def test_a_volume_or_drift_stage_holds_no_tool_code_nor_its_checks():
     for stage in PAPILLARRAY_STAGES:
         assert _under(stage, "tool") == [], stage
         assert TOOL_CHECK[1] not in _code(stage), stage
-        assert "tactilepipe.pipeline.studies" not in codedeps.stage_modules(stage), stage
+        assert "tactilepipe.studies" not in codedeps.stage_modules(stage), stage
     for stage in DRIFT_STAGES:                           # the sensor's check, not the lifts'
         assert "tactilepipe.volume.checks" not in codedeps.stage_modules(stage), stage
         assert AXES_CHECK[1] in _code(stage) and VOLUME_CHECK[1] not in _code(stage), stage

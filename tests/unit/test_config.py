@@ -12,7 +12,7 @@ from tactilepipe.cli import main as cli
 from tactilepipe.core.atomic import atomic_path, write_json, write_text
 from tactilepipe.core.config import deep_merge
 from tactilepipe.core.errors import ConfigError
-from tactilepipe.pipeline.studies import load_params      # as the workflow validates: every study's checks
+from tactilepipe.studies import load_params      # as the workflow validates: every study's checks
 
 from support.hostile import billion_laughs
 

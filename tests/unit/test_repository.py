@@ -276,6 +276,8 @@ LAYER_RULES = [
      "the raw trial formats come before the data, models and reports made from them"),
     (("tool", "volume", "drift", "papillarray", "rig"),  ("pipeline", "cli"),
      "study and rig code serve the workflow glue (pipeline) and the command line (cli), never the reverse"),
+    (("pipeline",),                                      ("tool", "volume", "drift", "papillarray", "rig"),
+     "the workflow glue knows no study: it reads each through its contract (tactilepipe/studies.py)"),
     # __main__ is the command line's entry point: it runs cli.main
     (OtherThan(("cli", "__main__")),                     ("cli",),
      "only the command line imports the command line"),

@@ -12,7 +12,7 @@ import pytest
 
 from tactilepipe.core.errors import ConfigError, InputError
 from tactilepipe.pipeline import codedeps, stamps
-from tactilepipe.pipeline.studies import load_params      # as the workflow validates: every study's checks
+from tactilepipe.studies import load_params      # as the workflow validates: every study's checks
 from tactilepipe.tool import runs
 from tactilepipe.core.tool_vocabulary import BASELINES
 from tactilepipe.tool.model.variants import NAMED_ARCHITECTURES, Architecture, defined_variants
@@ -142,7 +142,7 @@ def test_params_yaml_must_define_the_full_model():
     raw = yaml.safe_load((REPO / "params.yaml").read_text())
     del raw["tool_variants"]["full"]
     raw["tool_train"]["variants"] = ["no_gam"]
-    from tactilepipe.pipeline.studies import resolve
+    from tactilepipe.studies import resolve
     with pytest.raises(ConfigError, match="tool_variants must define 'full'"):
         resolve(raw)
 

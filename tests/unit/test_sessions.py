@@ -9,6 +9,7 @@ import pytest
 
 from tactilepipe.core.errors import InputError
 from tactilepipe.pipeline.sessions import SessionSheet
+from tactilepipe.tool import contract as tool_contract
 from tactilepipe.tool.formats.native_layout import TrialMeta
 from tactilepipe.tool.sim import session_plan as tool_plan
 from tactilepipe.volume.simulate import session_plan as volume_plan
@@ -32,7 +33,7 @@ def test_a_simulated_session_is_its_simulators_plan(smoke_params):
     assert [(r.name, r.kind, r.tool) for r in trials] == [(t.name, t.kind, t.tool) for t in plan]
     # a simulated trial's meta.json stands for its folder, which the simulator writes whole
     assert sheet.ingest_inputs(trials[0]) == ["raw/tool/sim-smoke/nano17.cal", f"{trials[0].path}/meta.json"]
-    assert sheet.tools("shear") == sorted({t.tool for t in plan if t.kind == "shear"})
+    assert tool_contract.tools(sheet, "shear") == sorted({t.tool for t in plan if t.kind == "shear"})
 
 
 def test_a_recorded_tool_session_is_read_from_its_trials(smoke_params, tmp_path):
@@ -48,7 +49,7 @@ def test_a_recorded_tool_session_is_read_from_its_trials(smoke_params, tmp_path)
     assert sheet.ingest_inputs(trials[1]) == [f"{raw}/tool/rig/t2/frames.csv", f"{raw}/tool/rig/t2/meta.json",
                                               f"{raw}/tool/rig/nano17.cal"]
     assert f"{raw}/tool/rig/notes.txt" in sheet.session_files("tool", "rig")    # provenance hashes the folder whole
-    assert [r.name for r in sheet.trials("shear")] == ["t2"] and sheet.tools("normal") == ["spatula"]
+    assert [r.name for r in tool_contract.trials(sheet, "shear")] == ["t2"] and tool_contract.tools(sheet, "normal") == ["spatula"]
 
 
 def test_a_trial_whose_metadata_is_wrong_is_named(smoke_params, tmp_path):

@@ -10,7 +10,9 @@ import sys
 
 import pytest
 
-from tactilepipe.pipeline import codedeps, estimate, sourcecache
+from tactilepipe.core import sourcecache
+from tactilepipe.pipeline import codedeps
+from tactilepipe.tool import estimate
 
 
 @pytest.fixture
@@ -68,7 +70,7 @@ def test_forward_flops_are_counted_once_per_model_and_source(cache_dir, monkeypa
     assert len(json.loads((cache_dir / "forward-flops.json").read_text())["entries"]) == 2
 
     # a new process reads the count back without importing torch
-    code = ("import sys; from tactilepipe.pipeline.estimate import forward_flops; "
+    code = ("import sys; from tactilepipe.tool.estimate import forward_flops; "
             f"print(forward_flops{args!r}); assert 'torch' not in sys.modules, 'torch imported'")
     out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "XDG_CACHE_HOME": str(cache_dir.parent)},
                          capture_output=True, text=True, check=True).stdout

@@ -82,13 +82,14 @@ def test_every_report_item_has_its_caption_file_and_a_readable_label(smoke_param
     is a file of workflow/report/, every caption file is used, and each item has a label."""
     from pathlib import Path
     from tactilepipe.pipeline import scenes
+    from tactilepipe.tool import contract as tool
     res = "results/smoke"
-    tool = [f"{res}/{{scene}}/qc.md"] + scenes.metric_outputs(f"{res}/{{scene}}", "{scene}", smoke_params) + \
-        [f"{res}/{{scene}}/figures/{f}.png" for f in scenes.TOOL_DATA_FIGURES + scenes.tool_model_figures(smoke_params)] + \
-        [f"{res}/{{scene}}/tables/{t}.md" for t in scenes.tool_model_tables(smoke_params)]
+    tool_files = [f"{res}/{{scene}}/qc.md"] + scenes.metric_outputs(f"{res}/{{scene}}", "tool", smoke_params) + \
+        [f"{res}/{{scene}}/figures/{f}.png" for f in tool.DATA_FIGURES + tool.model_figures(smoke_params)] + \
+        [f"{res}/{{scene}}/tables/{t}.md" for t in tool.model_tables(smoke_params)]
     items = scenes.report_items(scenes.report_outputs("volume", res, smoke_params), "volume", smoke_params) + \
         scenes.report_items(scenes.report_outputs("drift", res, smoke_params), "drift", smoke_params) + \
-        scenes.report_items(tool, "{scene}", smoke_params)
+        scenes.report_items(tool_files, "tool", smoke_params)
     report_dir = Path(__file__).resolve().parents[2] / "workflow" / "report"
     captions = {caption for _, caption, _, _ in items if caption}
     assert captions == {f"../report/{p.relative_to(report_dir)}" for p in report_dir.glob("*/*.rst")}

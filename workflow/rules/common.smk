@@ -6,13 +6,14 @@ import sys
 from functools import cache
 from pathlib import Path
 
-from tactilepipe.pipeline import codedeps, dvc_state, layout, scenes, stage_rules, studies
+from tactilepipe import studies
+from tactilepipe.pipeline import codedeps, dvc_state, layout, scenes, stage_rules
 from tactilepipe.pipeline.sessions import SessionSheet
 from tactilepipe.pipeline.stamp_keeper import StampKeeper
 from tactilepipe.core.config import changed_leaves, resolve, typed_like
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.core.yamlsafe import load_yaml_file
-from tactilepipe.tool import runs as run_names
+from tactilepipe.tool import contract as tool_contract, runs as run_names
 from tactilepipe.tool.scenes import scene_label
 from tactilepipe.tool.sim.background import background_path
 
@@ -81,7 +82,7 @@ def param_stamp(stage):
 
 def run_stamp(wildcards):
     """Input function: the stamp of a training job, its whole run spec."""
-    return STAMPS.run(wildcards.run)
+    return STAMPS.run("tool", wildcards.run)
 
 
 def tool_background_frame():
@@ -164,7 +165,7 @@ def scene_targets(names, data_only=False):
 
 
 def tool_runs(scene):
-    return run_names.tool_runs(P["tool_train"], P["tool_split"]["repeats"], SHEET.tools(scene_label(scene)))
+    return run_names.tool_runs(P["tool_train"], P["tool_split"]["repeats"], tool_contract.tools(SHEET, scene_label(scene)))
 
 
 def run_spec(run):
@@ -185,7 +186,7 @@ def provenance_inputs(scene):
     stages, _ = scenes.provenance_stages(scene, SHEET, simulator="always")
     runs = tool_runs(scene) if "tool-train" in stages else []     # a stamp per run, none of the stage
     return sorted({f for s in stages for f in stage_code(s)}) + [STAMPS.stage(s) for s in stages if s != "tool-train"] + \
-        [STAMPS.run(r) for r in runs]
+        [STAMPS.run("tool", r) for r in runs]
 
 
 # `snakemake --report report.html`: every figure, table and metrics file, each with a label and a caption
@@ -193,7 +194,7 @@ def provenance_inputs(scene):
 report: "../report/workflow.rst"
 
 
-def reported(files, scene):
+def reported(files, scene, study=None):
     """Outputs, those of the report marked as its items (pipeline/scenes.py report_items)."""
     return [f if caption is None else report(f, caption=caption, category=scene, subcategory=kind, labels=labels)
-            for f, caption, kind, labels in scenes.report_items(files, scene, P)]
+            for f, caption, kind, labels in scenes.report_items(files, study or scene, P)]

@@ -116,12 +116,12 @@ rule tool_split:
 rule tool_data_report:
     input:
         data=rules.tool_dataset.output,
-        raw=lambda w: SHEET.trial_inputs(scene_label(w.scene)),   # the pressing strip shows their frames
+        raw=lambda w: tool_contract.trial_inputs(SHEET, scene_label(w.scene)),   # the pressing strip shows their frames
         code=stage_code("tool-data-report"),
         params=param_stamp("tool-data-report"),
     output:
-        qc=reported([f"{RESULTS}/{{scene}}/qc.md"], "{scene}")[0],
-        figures=reported(scenes.figure_files(RESULTS + "/{scene}/figures", scenes.TOOL_DATA_FIGURES, "tool"), "{scene}"),
+        qc=reported([f"{RESULTS}/{{scene}}/qc.md"], "{scene}", "tool")[0],
+        figures=reported(tool_contract.figures(RESULTS + "/{scene}/figures", tool_contract.DATA_FIGURES), "{scene}", "tool"),
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     resources:
@@ -181,12 +181,12 @@ rule tool_model_report:
         params=param_stamp("tool-model-report"),
         provenance=lambda w: provenance_inputs(w.scene),
     output:
-        metrics=scenes.metric_outputs(f"{RESULTS}/{{scene}}", "{scene}", P),
+        metrics=scenes.metric_outputs(f"{RESULTS}/{{scene}}", "tool", P),
         scores=f"{RESULTS}/{{scene}}/scores.json",
         provenance=f"{RESULTS}/{{scene}}/provenance.json",
         runtime=f"{RESULTS}/{{scene}}/runtime.json",
-        tables=reported(expand(RESULTS + "/{{scene}}/tables/{t}.md", t=scenes.tool_model_tables(P)), "{scene}"),
-        figures=reported(scenes.figure_files(RESULTS + "/{scene}/figures", scenes.tool_model_figures(P), "tool"), "{scene}"),
+        tables=reported(expand(RESULTS + "/{{scene}}/tables/{t}.md", t=tool_contract.model_tables(P)), "{scene}", "tool"),
+        figures=reported(tool_contract.figures(RESULTS + "/{scene}/figures", tool_contract.model_figures(P)), "{scene}", "tool"),
     wildcard_constraints:
         scene="tool_normal|tool_shear",
     params:

@@ -79,14 +79,17 @@ ALWAYS_RULE_FILES = ["Snakefile", "workflow/rules/common.smk"]
 
 def workflow_library() -> list[str]:
     """The workflow's own library: the modules of tactilepipe.pipeline that common.smk imports, and
-    those they import from it (the session sheet, the scenes, the stamps, the declared rules). Its
-    logic is the rule files', and an edit to it can change any stage's jobs: a dep of every stage,
-    as common.smk is. (Study modules they call are the code of the stages that run them.)"""
+    those they import from it (the session sheet, the scenes, the stamps, the declared rules), with
+    the studies' contracts they read (tactilepipe/studies.py, each study's contract.py and their
+    vocabulary, core/study.py). Its logic is the rule files', and an edit to it can change any
+    stage's jobs: a dep of every stage, as common.smk is. (Study modules they call are the code of
+    the stages that run them.)"""
     text = Path("workflow/rules/common.smk").read_text()
-    roots = set()
+    roots = {"tactilepipe.studies"} if re.search(r"^from tactilepipe import studies$", text, flags=re.M) else set()
     for sub, names in re.findall(r"^from tactilepipe\.pipeline(?:\.(\w+))? import ([\w, ]+)$", text, flags=re.M):
         roots |= {f"tactilepipe.pipeline.{sub}"} if sub else {f"tactilepipe.pipeline.{n.strip()}" for n in names.split(",")}
-    modules = {m for r in roots for m in codedeps.module_closure(r) if m.startswith("tactilepipe.pipeline.")}
+    modules = {m for r in roots for m in codedeps.module_closure(r) if m.startswith("tactilepipe.pipeline.")
+               or m in ("tactilepipe.studies", "tactilepipe.core.study") or m.endswith(".contract")}
     return sorted(str(codedeps.module_path(m).resolve().relative_to(Path.cwd().resolve())) for m in modules)
 
 

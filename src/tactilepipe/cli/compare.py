@@ -57,7 +57,7 @@ def cmd_diff(args, p) -> int:
     if args.build is None:
         from pathlib import Path
 
-        from tactilepipe.pipeline.studies import load_params
+        from tactilepipe.studies import load_params
         params = Path(args.repo) / "params.yaml"       # a remote --repo: the default scale's build
         args.build = load_params(params)["build"] if params.is_file() else "default"
     diffs = diff.diff_runs(diff.read_run(old_rev, args.repo, scenes, args.build),

@@ -17,7 +17,7 @@ def cmd_provenance(args, p) -> int:
     from tactilepipe.pipeline.crate import write_crate
     repo = Path(args.repo)
     if args.build is None:
-        from tactilepipe.pipeline.studies import load_params
+        from tactilepipe.studies import load_params
         args.build = load_params(repo / "params.yaml")["build"]
     crate = write_crate(repo, args.build, Path(args.crate), args.agent)
     actions = [e for e in crate.get_entities() if e.type == "CreateAction"]

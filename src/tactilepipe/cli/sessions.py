@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 
 from tactilepipe.cli.registry import arg, command
-from tactilepipe.pipeline import studies
+from tactilepipe import studies
 
 COLUMNS = ("study", "session", "name", "format", "kind", "tool", "path")
 

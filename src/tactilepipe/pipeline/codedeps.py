@@ -30,8 +30,8 @@ from functools import lru_cache
 from pathlib import Path
 
 from tactilepipe.core.errors import TactilepipeError
-from tactilepipe.pipeline import sourcecache
-from tactilepipe.pipeline.sourcecache import PACKAGE_DIR
+from tactilepipe.core import sourcecache
+from tactilepipe.core.sourcecache import PACKAGE_DIR
 
 PACKAGE = PACKAGE_DIR.name
 CLI_PACKAGE = f"{PACKAGE}.cli"

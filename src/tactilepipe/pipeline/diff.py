@@ -33,17 +33,22 @@ import math
 from dataclasses import dataclass, field
 
 from tactilepipe.core.intervals import paired_difference
+from tactilepipe.core.study import same_value as _same
 from tactilepipe.pipeline.run_files import current_layout, read_run  # noqa: F401 (read_run: diff's reader)
 from tactilepipe.pipeline.scenes import SCENES as SCENE_TABLE
-from tactilepipe.tool.scenes import TOOL_SCENES
+from tactilepipe.studies import contracts
 
+CONTRACTS = contracts()
 SCENES = tuple(SCENE_TABLE)
-# stages whose change leaves the draws (splits, folds) alone: the models and their report
-MODEL_STAGES = {"tool-train", "tool-model-report", "volume-train", "volume-gridsearch", "volume-baseline",
-                "volume-report", "drift-report"}
+# stages whose change leaves the draws (splits, folds) alone: the models and their report (each study's)
+MODEL_STAGES = set().union(*(c.scores.MODEL_STAGES for c in CONTRACTS.values()))
 LOWER_IS_BETTER = {"mae", "rmse"}
 HIGHER_IS_BETTER = {"r2", "loo_r2"}
-TOOL_SCORES = ("mae", "rmse", "r2")
+
+
+def _scores(scene: str):
+    """How the scene's study lays out its scores.json (its contract's scores_layout.py)."""
+    return CONTRACTS[SCENE_TABLE[scene].study].scores
 
 
 @dataclass
@@ -139,32 +144,10 @@ def draws_identity(provenance: dict | None) -> str | None:
 
 # ----------------------------------------------------------------------------- what a scene scores
 
-def _number(x) -> float:
-    """A score as a float: null (json's None) is NaN, so it can never pass as a number."""
-    return math.nan if x is None else float(x)
-
-
 def scored_series(scene: str, metrics: dict) -> dict[tuple[str, str], dict]:
     """``{(model, metric): {"value", "draws", "names", "low", "high"}}`` of the scores over repeated
     draws; ``names`` names each draw (a tool scene's split), None where draws are only counted."""
-    series = {}
-    if scene in TOOL_SCENES:
-        models = {k: v for k, v in metrics.items() if isinstance(v, dict) and "per_split" in v}
-        models.update({f"baseline {k}": v for k, v in metrics.get("baselines", {}).items() if "per_split" in v})
-        splits = metrics.get("splits")
-        for model, m in models.items():
-            for score in TOOL_SCORES:
-                ov = m["over_splits"][score]
-                draws = [_number(x) for x in m["per_split"][score]]
-                series[(model, score)] = {"value": ov["mean"], "draws": draws,
-                                          "names": list(splits) if splits and len(splits) == len(draws) else None,
-                                          "low": _number(ov["low"]), "high": _number(ov["high"])}
-    elif scene == "volume":
-        for model, draws in metrics.get("r2_folds", {}).items():
-            low, high = metrics.get("r2_ci95", {}).get(model, (math.nan, math.nan))
-            series[(model, "r2")] = {"value": metrics["r2"][model]["mean"], "draws": [_number(x) for x in draws],
-                                     "names": None, "low": _number(low), "high": _number(high)}
-    return series
+    return _scores(scene).scored_series(metrics)
 
 
 def _nonfinite(value) -> bool:
@@ -174,33 +157,9 @@ def _nonfinite(value) -> bool:
 
 
 def draws_shown_same(scene: str, old: dict, new: dict) -> set[str]:
-    """The draws (splits) of a tool scene that two runs demonstrably share, whatever their
-    provenance says: the baselines are fitted deterministically on each draw's training part and
-    scored on its test part, so a draw of the same name with the same test size on which every
-    baseline scores exactly the same in both runs is the same split of the same data. This pairs
-    runs whose earlier stages' code changed without changing the data (a refactor)."""
-    if scene not in TOOL_SCENES:
-        return set()
-    names = []
-    for m in (old, new):
-        splits, sizes = m.get("splits") or [], m.get("test_pairs_per_split") or []
-        names.append({n: k for k, n in enumerate(splits)} if len(sizes) == len(splits) else {})
-    a, b = old.get("baselines") or {}, new.get("baselines") or {}
-    if not a or set(a) != set(b):
-        return set()
-    same = set()
-    for name in set(names[0]) & set(names[1]):
-        i, j = names[0][name], names[1][name]
-        if old["test_pairs_per_split"][i] != new["test_pairs_per_split"][j]:
-            continue
-        try:
-            if all(_same(_number(a[base]["per_split"][score][i]), _number(b[base]["per_split"][score][j]))
-                   and math.isfinite(_number(a[base]["per_split"][score][i]))
-                   for base in a for score in TOOL_SCORES):
-                same.add(name)
-        except (KeyError, IndexError, TypeError, ValueError):
-            continue
-    return same
+    """The draws two runs demonstrably share, whatever their provenance says (a tool scene's: the
+    splits on which every baseline scores exactly the same; tool/scores_layout.py)."""
+    return _scores(scene).draws_shown_same(old, new)
 
 
 def shared_draws(sa: dict, sb: dict, only: set[str] | None = None) -> tuple[list[float], list[float]] | None:
@@ -219,12 +178,9 @@ def shared_draws(sa: dict, sb: dict, only: set[str] | None = None) -> tuple[list
 
 def single_values(scene: str, metrics: dict) -> dict[str, float | str | bool]:
     """Every other number, verdict and name of the scene, by its dotted path (lists by index)."""
-    skip = {"per_split", "over_splits", "r2_folds", "r2_ci95"} if scene in TOOL_SCENES or scene == "volume" else set()
-    if scene == "volume":
-        skip.add("r2")
+    layout = _scores(scene)
+    skip, scored = layout.SINGLE_SKIP, layout.scored_keys
     out = {}
-    # a tool model's top-level scores are the means of its scored series: compared there, not twice
-    scored = lambda node: scene in TOOL_SCENES and "per_split" in node
 
     def walk(node, path):
         if node is None:                  # a null is kept: a value that became null has changed
@@ -235,7 +191,8 @@ def single_values(scene: str, metrics: dict) -> dict[str, float | str | bool]:
             out[path] = float(node)
         elif isinstance(node, dict):
             for k, v in node.items():
-                if k not in skip and not (k in TOOL_SCORES and scored(node)):
+                # a model's top-level scores are the means of its scored series: compared there, not twice
+                if k not in skip and k not in scored(node):
                     walk(v, f"{path}.{k}" if path else str(k))
         elif isinstance(node, list):
             for i, v in enumerate(node):
@@ -252,21 +209,14 @@ def single_values(scene: str, metrics: dict) -> dict[str, float | str | bool]:
 ROUNDING = 1e-9
 
 
-def _same(a, b) -> bool:
-    return a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
-
-
 def _rounding_only(a, b) -> bool:
     return all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in (a, b)) \
         and abs(a - b) <= ROUNDING * max(abs(a), abs(b))
 
 
 def _test_train_ratio(scene: str, run: dict) -> float:
-    """n_test/n_train of one draw, for the corrected resampled t the reports use."""
-    if scene == "volume":
-        folds = (run["provenance"] or {}).get("stages", {}).get("volume-report", {}).get("params", {}).get("folds")
-        return folds["test_lifts_per_volume"] / folds["train_lifts_per_volume"] if folds else 0.0
-    return float(run["metrics"].get("test_train_ratio", 0.0) or 0.0)
+    """n_test/n_train of one draw, for the corrected resampled t the reports use (the study says where)."""
+    return _scores(scene).test_train_ratio(run)
 
 
 def compare_scene(scene: str, old: dict | None, new: dict | None) -> SceneDiff:

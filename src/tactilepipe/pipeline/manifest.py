@@ -30,7 +30,7 @@ import time
 from pathlib import Path
 
 from tactilepipe.core.atomic import write_json, write_text
-from tactilepipe.pipeline.sourcecache import CACHE_DIR
+from tactilepipe.core.sourcecache import CACHE_DIR
 
 
 def _sha256(path: Path) -> str:

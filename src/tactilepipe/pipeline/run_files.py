@@ -11,16 +11,14 @@ first split's values (``current_layout``).
 
 from __future__ import annotations
 
-import copy
 import json
 
 from tactilepipe.core.errors import InputError
 from tactilepipe.pipeline.layout import results_root
 from tactilepipe.pipeline.scenes import SCENES as SCENE_TABLE
-from tactilepipe.tool.scenes import TOOL_SCENES
+from tactilepipe.studies import contracts
 
-TOOL_SCORES = ("mae", "rmse", "r2")
-FIRST_SPLIT_KEYS = ("mae", "rmse", "r2", "slope", "intercept")     # a model's scores on the first split
+CONTRACTS = contracts()
 
 
 def read_run(rev: str | None, repo: str = ".", scenes=tuple(SCENE_TABLE), build: str = "default") -> dict[str, dict | None]:
@@ -54,20 +52,6 @@ def read_run(rev: str | None, repo: str = ".", scenes=tuple(SCENE_TABLE), build:
 
 
 def current_layout(scene: str, metrics: dict) -> dict:
-    """A tool scene's scores in today's layout. Until scores.json, each model's (and baseline's)
-    top-level ``mae``, ``rmse`` and ``r2`` (and a variant's ``slope`` and ``intercept``) were its
-    first split's, named by the scene's top-level ``split``, beside ``test_pairs``: those move
-    under ``first_split`` and the top-level scores become the means over the splits, as the report
-    writes them now. Anything else, and today's layout, is returned as it is."""
-    if scene not in TOOL_SCENES or "first_split" in metrics:
-        return metrics
-    m = copy.deepcopy(metrics)
-    if "split" in m or "test_pairs" in m:
-        m["first_split"] = {"split": m.pop("split", None), "test_pairs": m.pop("test_pairs", None)}
-    models = [v for v in m.values() if isinstance(v, dict) and "per_split" in v]
-    models += [v for v in (m.get("baselines") or {}).values() if isinstance(v, dict) and "per_split" in v]
-    for model in models:
-        model["first_split"] = {"split": m.get("first_split", {}).get("split")} | \
-            {k: model.pop(k) for k in FIRST_SPLIT_KEYS if k in model}
-        model.update({s: model["over_splits"][s]["mean"] for s in TOOL_SCORES if s in model["over_splits"]})
-    return m
+    """A scene's scores in today's layout: its study reads earlier revisions' layouts (a tool
+    scene's first-split scores before scores.json: tool/scores_layout.py); today's as it is."""
+    return CONTRACTS[SCENE_TABLE[scene].study].scores.current_layout(metrics)

@@ -12,47 +12,38 @@ Each answer is computed once per sheet: nothing in a build writes into a real se
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
 from tactilepipe.core.errors import ConfigError, InputError
 from tactilepipe.core.simulated import is_simulated
+from tactilepipe.core.study import Recording
+from tactilepipe.studies import contracts
 
-STUDIES = ("volume", "drift", "tool")
+CONTRACTS = contracts()
+STUDIES = tuple(CONTRACTS)
 # a recording's name is one component of its output paths (spaces are fine: rules quote paths)
 PLAIN_NAME = re.compile(r"[^/\\\x00-\x1f.][^/\\\x00-\x1f]*")
 
 
-@dataclass(frozen=True)
-class Recording:
-    study: str          # volume | drift | tool: the folder raw/<study>/
-    session: str
-    name: str           # the bag's stem or the trial's name: names its shard
-    path: str           # the bag, or the trial's folder or bag
-    format: str         # bag (PapillArray) | native | public | ros (tool trials)
-    kind: str = ""      # a tool trial's force: normal | shear
-    tool: str = ""      # a tool trial's tool
-
-
 class SessionSheet:
-    """The sessions ``params`` names (``volume_sessions``, ``drift_session``, ``tool_sessions``),
-    their recordings and files, under ``raw`` (the project's raw/ folder)."""
+    """The sessions ``params`` names (each study's, core/study.py: ``volume_sessions``,
+    ``drift_session``, ``tool_sessions``), their recordings and files, under ``raw`` (the
+    project's raw/ folder). Each study's own reader finds them (its contract.py)."""
 
     def __init__(self, params: dict, raw: str = "raw"):
         self.p, self.raw = params, raw
         self.recordings = cache(self.recordings)
-        self._tool_plan = cache(self._tool_plan)
 
     def sessions(self, study: str) -> list[str]:
-        return [self.p["drift_session"]] if study == "drift" else list(self.p[f"{study}_sessions"])
+        return CONTRACTS[study].sessions(self.p)
 
     def folder(self, study: str, session: str) -> str:
         return f"{self.raw}/{study}/{session}"
 
     def recordings(self, study: str, session: str) -> tuple[Recording, ...]:
         """The session's recordings, in the order the simulator plans or the disk sorts them."""
-        found = {"volume": self._volume, "drift": self._drift, "tool": self._tool}[study](session)
+        found = CONTRACTS[study].recordings(self.p, self.folder(study, session), session)
         seen = set()
         for r in found:
             if not PLAIN_NAME.fullmatch(r.name):
@@ -76,21 +67,14 @@ class SessionSheet:
 
     # --- what each recording's ingest reads ------------------------------------------------------
     def ingest_inputs(self, r: Recording) -> list[str]:
-        """The files the ingest job of ``r`` declares: a simulated trial's meta.json stands for its
-        folder (the simulator writes it whole), a real one's files are those reading it opens."""
-        if r.study != "tool":
-            return [r.path]
-        if is_simulated(r.session):
-            return [f"{self.folder('tool', r.session)}/nano17.cal", f"{r.path}/meta.json"]
-        return self.files_on_disk(r)
+        """The files the ingest job of ``r`` declares (its study says which: a simulated trial's
+        meta.json stands for its folder, which the simulator writes whole)."""
+        return CONTRACTS[r.study].ingest_inputs(r, self.folder(r.study, r.session))
 
     def files_on_disk(self, r: Recording) -> list[str]:
         """Every file reading ``r`` opens, as the disk holds them now (a simulated trial's, once
         written): what its content stamp hashes."""
-        if r.study != "tool":
-            return [r.path]
-        from tactilepipe.tool.formats.trials import trial_files
-        return trial_files(r.path, r.format, self.folder("tool", r.session))
+        return CONTRACTS[r.study].files_on_disk(r, self.folder(r.study, r.session))
 
     def session_files(self, study: str, session: str) -> list[str]:
         """Every file of a session, which provenance.json hashes whole: a real session's files as
@@ -99,28 +83,11 @@ class SessionSheet:
         folder = self.folder(study, session)
         if not is_simulated(session):
             return sorted(str(p) for p in Path(folder).rglob("*") if p.is_file())
-        recordings = self.recordings(study, session)
-        if study == "tool":
-            return [f for r in recordings for f in self.ingest_inputs(r)]
-        facts = {"volume": "lifts.csv", "drift": "session.json"}[study]
-        return [r.path for r in recordings] + [f"{folder}/{facts}"]
+        return CONTRACTS[study].simulated_files(self.recordings(study, session), folder)
 
     def study_files(self, study: str) -> list[str]:
         """Every file of every session of ``study``."""
         return [f for s in self.sessions(study) for f in self.session_files(study, s)]
-
-    # --- the tool study's trials by kind ---------------------------------------------------------
-    def trials(self, kind: str) -> list[Recording]:
-        """The tool trials of one force kind, over every tool session."""
-        return [r for s in self.sessions("tool") for r in self.recordings("tool", s) if r.kind == kind]
-
-    def trial_inputs(self, kind: str) -> list[str]:
-        """The files the ingest jobs of one kind's trials read."""
-        return [f for r in self.trials(kind) for f in self.ingest_inputs(r)]
-
-    def tools(self, kind: str) -> list[str]:
-        """The tools of a kind's trials (the leave-one-tool-out runs leave each out in turn)."""
-        return sorted({r.tool for r in self.trials(kind)})
 
     def check(self) -> None:
         """Read every session params.yaml names (their recordings, each tool trial's metadata): a
@@ -134,59 +101,3 @@ class SessionSheet:
             for s in self.sessions(study):
                 for r in self.recordings(study, s):
                     yield r
-
-    # --- finding them ----------------------------------------------------------------------------
-    def _volume(self, session: str) -> tuple[Recording, ...]:
-        folder = self.folder("volume", session)
-        if is_simulated(session):
-            from tactilepipe.volume.simulate import session_plan
-            stems = [lift.name for lift in session_plan(self.p["simulate_volume"])]
-        else:
-            from tactilepipe.volume.labels import read_session_labels
-            stems = [Path(row["bag"]).stem for row in read_session_labels(folder)]
-        return tuple(self.bag("volume", session, s) for s in stems)
-
-    def _drift(self, session: str) -> tuple[Recording, ...]:
-        folder = self.folder("drift", session)
-        if is_simulated(session):
-            from tactilepipe.drift.simulate import session_plan
-            stems = session_plan(self.p)
-        else:
-            if not Path(folder).is_dir():
-                raise InputError(folder, "session folder not found (params.yaml drift_session)")
-            stems = sorted(p.stem for p in Path(folder).glob("*.bag"))
-            if not stems:
-                raise InputError(folder, "no .bag files: the drift session's recordings are its bags")
-        return tuple(self.bag("drift", session, s) for s in stems)
-
-    def _tool_plan(self):
-        from tactilepipe.tool.sim import session_plan
-        return tuple(session_plan(self.p))
-
-    def _tool(self, session: str) -> tuple[Recording, ...]:
-        folder = self.folder("tool", session)
-        if is_simulated(session):
-            return tuple(Recording("tool", session, t.name, f"{folder}/{t.name}", "native", t.kind, t.tool)
-                         for t in self._tool_plan())
-        from tactilepipe.tool.formats.trials import list_trials
-        out = []
-        for name, path, fmt in list_trials(folder):
-            kind, tool = _trial_kind_and_tool(folder, Path(path), fmt)
-            out.append(Recording("tool", session, name, str(path), fmt, kind, str(tool)))
-        return tuple(out)
-
-
-def _trial_kind_and_tool(session_dir: str, path: Path, fmt: str) -> tuple[str, str]:
-    """(kind, tool) of a recorded trial, from its own metadata (native meta.json, a ROS bag's
-    sidecar) or, in the public layout, its kind folder and the session's trials.csv."""
-    if fmt == "native":
-        from tactilepipe.tool.formats.native_layout import TrialMeta
-        meta = TrialMeta.read(path)
-        return meta.kind, meta.tool
-    if fmt == "public":
-        from tactilepipe.tool.formats.trials import public_trial_meta, read_trials_csv
-        meta = public_trial_meta(read_trials_csv(session_dir), path)
-        return ("normal" if "data_normal" in str(path) else "shear"), meta["tool"]
-    from tactilepipe.tool.formats.rosbag import read_sidecar_meta
-    meta = read_sidecar_meta(path)
-    return meta["kind"], meta["tool"]

@@ -4,7 +4,7 @@ pipeline/manifest.py (raw file content); this keeps the files.
 
 - A stage's parameter stamp, results/<build>/params/<stage>.json (a simulator's under its scale,
   results/<scale>/params/, so a second build of one scale re-simulates nothing), and a training
-  job's, results/<build>/params/tool-train/<run>.json: rewritten only when their values change. A
+  job's, results/<build>/params/<its stage>/<run>.json (tool-train/): rewritten only when their values change. A
   change then re-runs the job by file time, also where Snakemake has no record of earlier runs
   (a fresh clone, a new machine).
 - An ingest job's content stamp, .tactilepipe/content/<study>/<session>/<recording>.json: the
@@ -26,11 +26,13 @@ from functools import cache
 from pathlib import Path
 from typing import Callable
 
+from tactilepipe.core.study import Recording
 from tactilepipe.pipeline import codedeps, layout, manifest, stamps
-from tactilepipe.pipeline.sessions import Recording, SessionSheet
-from tactilepipe.tool import runs as run_names
+from tactilepipe.pipeline.sessions import SessionSheet
+from tactilepipe.studies import contracts
 
-SCALE_STAGES = {"volume-simulate", "drift-simulate", "tool-simulate"}
+CONTRACTS = contracts()
+SCALE_STAGES = {c.SIMULATOR for c in CONTRACTS.values()}
 CONTENT_STAMPS = ".tactilepipe/content"
 
 
@@ -59,12 +61,14 @@ class StampKeeper:
         """The stamps of those of ``stages`` kept in the scale's folder rather than the build's."""
         return [self.stage(s) for s in stages if s in SCALE_STAGES]
 
-    def run(self, run: str) -> str:
-        """A training job's own stamp: the tool-train stage's keys and the run's definition
-        (tool/runs.py), so a key only some runs read, or a new variant, re-runs only those."""
-        text = stamps.run_stamp_text(run_names.run_definition(self.p, run), codedeps.stage_param_keys("tool-train"),
-                                     run_names.run_source_keys(self.p["tool_train"], run), self.p)
-        return self._current(self.params_dir, f"tool-train/{run}.json", text)
+    def run(self, study: str, run: str) -> str:
+        """A training job's own stamp: its stage's keys and the run's definition (the study's
+        contract: RUN_STAGE, run_definition, run_source_keys), so a key only some runs read, or a
+        new variant, re-runs only those."""
+        c = CONTRACTS[study]
+        text = stamps.run_stamp_text(c.run_definition(self.p, run), codedeps.stage_param_keys(c.RUN_STAGE),
+                                     c.run_source_keys(self.p, run), self.p)
+        return self._current(self.params_dir, f"{c.RUN_STAGE}/{run}.json", text)
 
     def content(self, recording: Recording, output: str) -> str:
         """The content stamp of every file reading ``recording`` opens, for the job writing ``output``."""

@@ -1,4 +1,7 @@
-"""Every study's parameter checks in one place: the full validation of a params.yaml.
+"""The studies of this project, the one module that lists them: their contracts with the
+workflow (``contracts()``: each package's contract.py, core/study.py) and their parameter checks
+(``CHECKS``, the full validation of a params.yaml). The workflow's library (pipeline/) reads every
+study through these, and imports no study package itself.
 
 Each study keeps the checks of its own keys beside its code (volume/checks.py, tool/checks.py,
 and papillarray/checks.py, the sensor's axis map, which the volume and drift stages share), so
@@ -14,7 +17,9 @@ module to build its parser, checks included, but runs only its own stage's.)
 
 from __future__ import annotations
 
+from functools import cache
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 from tactilepipe.core import config
@@ -34,3 +39,15 @@ def resolve(raw: dict, source: str = "params.yaml", overrides: dict | None = Non
 def load_params(path: str | Path = config.DEFAULT_PARAMS, overrides: dict | None = None) -> dict[str, Any]:
     """`tactilepipe.core.config.load_params` with every study's checks."""
     return config.load_params(path, overrides, CHECKS)
+
+
+@cache
+def contracts() -> dict[str, ModuleType]:
+    """Each study's contract (its contract.py, core/study.py) by study name, in the order the
+    workflow reads their sessions and lists their scenes. Imported when first asked for: a stage's
+    command line imports this module for the checks alone (cli/sessions.py names them), never the
+    contracts, which are the workflow's code, not a stage's."""
+    from tactilepipe.drift import contract as drift
+    from tactilepipe.tool import contract as tool
+    from tactilepipe.volume import contract as volume
+    return {c.STUDY: c for c in (volume, drift, tool)}

@@ -1,0 +1,62 @@
+"""What the workflow knows of a study, in the study's own words: the vocabulary of its contract.
+
+Each study package declares its contract in its ``contract.py`` (volume/, drift/, tool/); the one
+module that lists the studies is tactilepipe/studies.py. The workflow's library (pipeline/) reads
+a study only through these names, so adding a study, a scene or an output touches that study's
+package, not pipeline/. A contract module defines:
+
+- ``STUDY``: its folder under raw/ (raw/<study>/<session>/) and the sessions key of params.yaml;
+- ``SIMULATOR``: the stage that writes a simulated session (``sim-<scale>``);
+- ``SCENES``: {scene: Scene}, the scenes it builds and the stages that make their numbers;
+- ``PLOT_DATA``: the figures written with their data beside them (<figure>.csv), drawn by DVC;
+- ``REPORT_LABELS``: what `snakemake --report` calls each item (by file stem);
+- ``sessions(p)``, ``recordings(p, folder, session)``, ``ingest_inputs(recording, folder)``,
+  ``files_on_disk(recording, folder)``, ``simulated_files(recordings, folder)``: its session reader;
+- ``metric_rows(p)``: its rows of DVC's metrics (core/metric_rows.py), the same in each scene;
+- ``targets(scene, results, p, sheet, data_only)``: every file a scene ends in;
+- ``caption_stem(stem, p)``: the caption file of a report item whose stem names two items;
+- ``scores``: how `tactilepipe diff` reads its scenes' scores.json (its scores_layout.py: the
+  scored series, the draws two runs share, earlier layouts, the stages that leave the draws alone);
+- a study with training jobs of their own: ``RUN_STAGE``, ``run_definition(p, run)``,
+  ``run_source_keys(p, run)`` (each run's parameter stamp, pipeline/stamp_keeper.py).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Recording:
+    study: str          # volume | drift | tool: the folder raw/<study>/
+    session: str
+    name: str           # the bag's stem or the trial's name: names its shard
+    path: str           # the bag, or the trial's folder or bag
+    format: str         # bag (PapillArray) | native | public | ros (tool trials)
+    kind: str = ""      # a tool trial's force: normal | shear
+    tool: str = ""      # a tool trial's tool
+
+
+@dataclass(frozen=True)
+class Scene:
+    study: str                  # the study whose sessions it reads (raw/<study>/) and its simulator
+    stages: tuple[str, ...]     # the stages that make its numbers, recordings to report
+
+
+def figure_files(folder: str, names, plot_data=()) -> list[str]:
+    """Every file a figure is written as: PNG, its SVG twin (core/atomic.py save_figure) and, for
+    the figures of ``plot_data``, its data."""
+    return [f"{folder}/{n}{ext}" for n in names
+            for ext in (".png", ".svg") + ((".csv",) if n in plot_data else ())]
+
+
+# --- a scene's scores as `tactilepipe diff` reads them (each study's contract says where they are) --
+def score_number(x) -> float:
+    """A score as a float: null (json's None) is NaN, so it can never pass as a number."""
+    return math.nan if x is None else float(x)
+
+
+def same_value(a, b) -> bool:
+    """Equal, or both NaN."""
+    return a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))

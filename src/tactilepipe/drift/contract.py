@@ -1,0 +1,81 @@
+"""The drift study's contract with the workflow (core/study.py): its session, the drift scene, the
+files that scene ends in and what the report calls them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from tactilepipe.core.errors import InputError
+from tactilepipe.core.metric_rows import metric_files
+from tactilepipe.core.simulated import is_simulated
+from tactilepipe.core.study import Recording, Scene, figure_files
+from tactilepipe.drift import scores_layout as scores   # how `tactilepipe diff` reads its scores.json
+from tactilepipe.drift import RUNS, SESSION_META
+
+STUDY = "drift"
+SIMULATOR = "drift-simulate"
+SCENES = {"drift": Scene("drift", ("papillarray-ingest", "drift-report"))}
+PLOT_DATA = ("drift_curves",)
+# what the report stage writes under results/<build>/drift/ (drift/analyse.py), besides its metric rows
+OUTPUTS = ["scores.json", "provenance.json", "fits.md"] + figure_files("figures", ["drift_curves"], PLOT_DATA)
+REPORT_LABELS = {"fits": "Drift fits and recalibration interval", "drift_curves": "Drift with the fitted curves"}
+
+
+def sessions(p: dict) -> list[str]:
+    return [p["drift_session"]]
+
+
+def recordings(p: dict, folder: str, session: str) -> tuple[Recording, ...]:
+    """A session's bags: every .bag of its folder (a simulated one's, from the simulator's plan)."""
+    if is_simulated(session):
+        from tactilepipe.drift.simulate import session_plan
+        stems = session_plan(p)
+    else:
+        if not Path(folder).is_dir():
+            raise InputError(folder, "session folder not found (params.yaml drift_session)")
+        stems = sorted(p.stem for p in Path(folder).glob("*.bag"))
+        if not stems:
+            raise InputError(folder, "no .bag files: the drift session's recordings are its bags")
+    return tuple(Recording(STUDY, session, s, f"{folder}/{s}.bag", "bag") for s in stems)
+
+
+def ingest_inputs(recording: Recording, folder: str) -> list[str]:
+    return [recording.path]
+
+
+def files_on_disk(recording: Recording, folder: str) -> list[str]:
+    return [recording.path]
+
+
+def simulated_files(recordings: tuple[Recording, ...], folder: str) -> list[str]:
+    return [r.path for r in recordings] + [f"{folder}/{SESSION_META}"]
+
+
+def metric_rows(p: dict) -> list[str]:
+    """A row per run of the session."""
+    return list(RUNS)
+
+
+def report_outputs(scene: str, results: str, p: dict) -> list[str]:
+    """What the report stage writes: the metric rows and OUTPUTS."""
+    return [f"{results}/{scene}/{f}" for f in metric_files(metric_rows(p)) + OUTPUTS]
+
+
+def targets(scene: str, results: str, p: dict, sheet, data_only: bool = False) -> list[str]:
+    return report_outputs(scene, results, p)
+
+
+def caption_stem(stem: str, p: dict) -> str:
+    return stem
+
+
+# --- the compute estimate of `snakemake -n` (pipeline/estimate.py): nothing timed or modelled -------
+MEASURED_RULES: tuple[str, ...] = ()
+
+
+def measured_seconds(p: dict, rule: str, wildcards: dict, runtimes) -> float | None:
+    return None
+
+
+def modelled_report(p: dict, jobs: list, run_spec, build_dir) -> list[str]:
+    return []
