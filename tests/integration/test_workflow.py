@@ -527,40 +527,65 @@ def test_an_edit_in_one_studys_code_plans_no_job_of_the_other(smoke_build: Path,
     assert planned["tool"] and all(rule.startswith("tool_") for rule in planned["tool"]), planned
 
 
-NEW_STAGE = '''"""A count of the volume data set's lifts."""
+NEW_STAGE = '''"""A count of the volume data set's lifts, and a figure of them per volume."""
 
 from tactilepipe.cli.registry import arg, command
 from tactilepipe.cli.volume_args import VOLUME_CHECKS
 
 
-@command("volume-summary", "lifts and volumes of the dataset, counted",
+@command("volume-summary", "lifts and volumes of the dataset, counted and drawn",
          checks=VOLUME_CHECKS, params=("seed",),
-         args=(arg("--dataset", required=True), arg("--out", required=True)),
+         args=(arg("--dataset", required=True), arg("--out", required=True), arg("--figure", required=True)),
          rule={"scene": "volume", "inputs": {"dataset": "volume/dataset.parquet"},
-               "outputs": {"out": "volume/summary.json"}})
+               "outputs": {"out": "volume/summary.json", "figure": "volume/figures/lifts_per_volume.png"},
+               "report": {"figure": "Lifts per volume"}})
 def cmd_volume_summary(args, p) -> None:
     import pandas as pd
     from tactilepipe.core.atomic import write_json
-    data = pd.read_parquet(args.dataset)
+    from tactilepipe.core.plotting import plt
+    data = pd.read_parquet(args.dataset).drop_duplicates("lift")
     write_json(args.out, {"lifts": len(data), "volumes_ml": sorted(set(data["volume_ml"].tolist()))})
+    counts = data["volume_ml"].value_counts().sort_index()
+    fig, ax = plt.subplots()
+    ax.bar([str(v) for v in counts.index], counts.values)
+    ax.set(xlabel="volume (ml)", ylabel="lifts")
+    fig.savefig(args.figure, dpi=80)
 '''
+CAPTION = "Lifts of each volume in the data set, scale ``{{ snakemake.config.scale }}``.\n"
 
 
-def test_a_new_stage_is_its_declaration_and_builds_through_snakemake_and_dvc(smoke_build: Path, tmp_path: Path):
-    """A stage that declares its rule needs no rule file, target list, command list or DVC stage
-    written for it: its module added, Snakemake plans exactly its job (no other stage's code
-    changed), its output joins its scene's targets, the regenerated dvc.yaml holds it in the
-    scene's stage, and `dvc repro` builds it."""
+def test_a_new_stage_with_a_figure_is_its_module_its_caption_and_nothing_else(smoke_build: Path, tmp_path: Path):
+    """A stage that declares its rule needs no rule file, target list, command list, report entry
+    or DVC stage written for it: its module and its figure's caption added, Snakemake plans its job
+    and the scene's report (whose provenance.json now records the stage), its figure is an item of
+    `snakemake --report` with its label and caption, the regenerated dvc.yaml holds it in the
+    scene's stage, and `dvc repro` builds it. Without its caption the workflow stops, naming it."""
     wd = shutil.copytree(smoke_build, tmp_path / "wd", symlinks=True)
     params = wd / "params.yaml"
     params.write_text(re.sub(r"^scale: \w+", "scale: smoke", params.read_text(), count=1, flags=re.M))
     (wd / "src/tactilepipe/cli/volume_summary.py").write_text(NEW_STAGE)      # the stage's one file of code
+    caption = wd / "workflow/report/volume/lifts_per_volume.rst"
+    proc = snakemake(wd, "-n", check=False)
+    assert proc.returncode != 0 and "needs its caption, workflow/report/volume/lifts_per_volume.rst" in \
+        proc.stdout + proc.stderr, proc.stderr[-2000:]
+    caption.write_text(CAPTION)                                                # and its caption
     planned = _planned_jobs(snakemake(wd, "-n"))
-    assert planned == {("volume_summary", "")}, planned
+    assert planned == {("volume_summary", ""), ("volume_report", "")}, planned
     snakemake(wd)
     summary = json.loads((results(wd) / "volume/summary.json").read_text())
     assert summary["lifts"] > 0 and 0.0 in summary["volumes_ml"]
+    assert (results(wd) / "volume/figures/lifts_per_volume.png").read_bytes()[:4] == b"\x89PNG"
     assert (results(wd) / "logs/volume/volume_summary.log").exists()
+    provenance = json.loads((results(wd) / "volume/provenance.json").read_text())
+    assert provenance["stages"]["volume-summary"]["params"] == {"seed": load_params(wd / "params.yaml")["seed"]}
+    assert len(provenance["stages"]["volume-summary"]["code_sha256"]) == 64
+    html = tmp_path / "report.html"
+    snakemake(wd, "--report", str(html))
+    line = next(l for l in html.read_text().splitlines() if l.strip().startswith("var results = {"))
+    items = json.loads(line.strip()[len("var results = "):].rstrip(";"))
+    item = next(v for k, v in items.items() if k.endswith("volume/figures/lifts_per_volume.png"))
+    assert item["labels"] == {"result": "Lifts per volume"} and "Lifts of each volume" in item["caption"], item
+    assert "scale smoke" in re.sub(r"<[^>]+>", "", item["caption"]).replace("``", ""), item["caption"]
     run([str(BIN / "python"), "workflow/scripts/dvc_yaml.py"], wd)
     stage = yaml.safe_load((wd / "dvc.yaml").read_text())["stages"]["volume"]
     assert "results/${scale}/volume/summary.json" in json.dumps(stage["outs"]), stage["outs"]

@@ -46,6 +46,10 @@ def test_a_declared_output_is_a_target_of_its_scene(smoke_params):
     ({"scene": ["volume"], "inputs": {}, "outputs": {"out": "volume/f.json"}}, "is none of"),
     ({"scene": "volume", "inputs": {}, "outputs": {}}, "at least one output"),
     ({"scene": "volume", "inputs": {}, "outputs": {"out": "f.json"}, "threads": 2}, "must be a dict of scene"),
+    ({"scene": "volume", "inputs": {}, "outputs": {"out": "volume/f.png"}, "report": {"figure": "Lifts"}},
+     "report must map some of its outputs' arguments to the label"),
+    ({"scene": "volume", "inputs": {}, "outputs": {"out": "volume/f.png"}, "report": {"out": " "}},
+     "report must map"),
 ])
 def test_a_wrong_declaration_is_named_with_its_stage(decl, problem):
     with pytest.raises(TactilepipeError, match=f"stage volume-split: its rule= declaration.*{problem}"):
@@ -89,10 +93,20 @@ def test_every_report_item_has_its_caption_file_and_a_readable_label(smoke_param
         [f"{res}/{{scene}}/tables/{t}.md" for t in tool.model_tables(smoke_params)]
     items = scenes.report_items(scenes.report_outputs("volume", res, smoke_params), "volume", smoke_params) + \
         scenes.report_items(scenes.report_outputs("drift", res, smoke_params), "drift", smoke_params) + \
-        scenes.report_items(tool_files, "tool", smoke_params)
+        scenes.report_items(tool_files, "tool", smoke_params) + \
+        [item for rule in stage_rules.stage_rules() for item in rule.report_items(res).values()]
     report_dir = Path(__file__).resolve().parents[2] / "workflow" / "report"
     captions = {caption for _, caption, _, _ in items if caption}
     assert captions == {f"../report/{p.relative_to(report_dir)}" for p in report_dir.glob("*/*.rst")}
     for f, caption, kind, labels in items:
         assert (caption is None) == (labels is None), f
         assert labels is None or (labels["result"] and "_" not in labels["result"]), (f, labels)
+
+
+def test_a_report_item_of_a_declared_stage_has_its_label_and_its_studys_caption_file():
+    rule = stage_rules._checked("volume-split", {"scene": "volume", "inputs": {"dataset": "volume/dataset.parquet"},
+                                                 "outputs": {"out": "volume/figures/folds.png"},
+                                                 "report": {"out": "Lifts per fold"}})
+    assert rule.report_items("results/smoke") == {"out": ("results/smoke/volume/figures/folds.png",
+                                                          "../report/volume/folds.rst", "figures",
+                                                          {"result": "Lifts per fold"})}

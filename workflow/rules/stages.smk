@@ -8,6 +8,18 @@ except TactilepipeError as exc:
     raise WorkflowError(str(exc)) from None
 
 
+def declared_report_items(stage):
+    """The outputs the stage names under ``report``, marked as items of `snakemake --report`; a
+    caption file missing stops the workflow as it is read, naming it."""
+    items = {}
+    for key, (path, caption, kind, labels) in stage.report_items(RESULTS).items():
+        if not (Path(workflow.basedir) / "workflow" / "rules" / caption).is_file():
+            raise WorkflowError(f"stage {stage.stage}: its report item {path} needs its caption, "
+                                f"workflow/{caption.removeprefix('../')} (which data, scale and split it shows)")
+        items[key] = report(path, caption=caption, category=stage.scene, subcategory=kind, labels=labels)
+    return items
+
+
 for _stage in _STAGES:
     rule:
         name: _stage.name
@@ -16,7 +28,7 @@ for _stage in _STAGES:
             code=stage_code(_stage.stage),
             params=param_stamp(_stage.stage),
         output:
-            **_stage.named_outputs(RESULTS),
+            **_stage.named_outputs(RESULTS) | declared_report_items(_stage),
         localrule: _stage.local
         resources:
             **rule_resources(_stage.name),

@@ -13,6 +13,7 @@ from tactilepipe.core.metric_rows import FOLDER as METRICS_FOLDER
 from tactilepipe.core.metric_rows import metric_files
 from tactilepipe.core.simulated import is_simulated
 from tactilepipe.core.study import Scene
+from tactilepipe.pipeline import stage_rules
 from tactilepipe.pipeline.sessions import SessionSheet
 from tactilepipe.studies import contracts
 
@@ -39,11 +40,13 @@ def metric_outputs(folder: str, name: str, p: dict) -> list[str]:
 
 def provenance_stages(name: str, sheet: SessionSheet, simulator: str = "if simulated") -> tuple[list[str], list[str]]:
     """The stages that make a scene's numbers (its simulator's first when a session is simulated,
-    or with simulator="always") and the scene's raw session folders."""
+    or with simulator="always"; then its study's list, then any other stage that declares its rule
+    in the scene) and the scene's raw session folders."""
     s = scene(name)
     sessions = sheet.sessions(s.study)
     simulated = simulator == "always" or any(is_simulated(x) for x in sessions)
-    return ([CONTRACTS[s.study].SIMULATOR] if simulated else []) + list(s.stages), \
+    declared = [r.stage for r in stage_rules.stage_rules([name]) if r.stage not in s.stages]
+    return ([CONTRACTS[s.study].SIMULATOR] if simulated else []) + list(s.stages) + declared, \
         [sheet.folder(s.study, x) for x in sessions]
 
 

@@ -5,8 +5,11 @@ A stage whose inputs and outputs are fixed files of a build declares its rule wi
 each a path under the build's folder keyed by the stage's own ``--<key>`` argument. From that the
 workflow (workflow/rules/stages.smk) makes its Snakemake rule: inputs, outputs, code and parameter
 stamp, log and shell line; its outputs join the scene's targets (pipeline/scenes.py), so its
-scene's DVC stage and `tactilepipe diff` take it in too. Adding such a stage is its function with
-its declaration, its test and its docs; `make dvc.yaml` regenerates the DVC stages.
+scene's DVC stage and `tactilepipe diff` take it in too, and its scene's provenance.json records
+it. An output named under ``report`` (its key -> the label the report lists it by) is an item of
+`snakemake --report`, with its caption in workflow/report/<study>/<file stem>.rst. Adding such a
+stage is its module (function and declaration), its caption and its test; `make dvc.yaml`
+regenerates the DVC stages.
 
 Stages whose jobs come from sessions or runs (one per recording, per trained model) keep their
 rules in workflow/rules/, written by hand.
@@ -20,9 +23,11 @@ from dataclasses import dataclass
 
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.pipeline import codedeps
-from tactilepipe.pipeline.scenes import SCENES
+from tactilepipe.studies import contracts
 
-KEYS = {"scene", "inputs", "outputs", "local"}
+KEYS = {"scene", "inputs", "outputs", "local", "report"}
+# each scene's study (a study's contract declares its scenes)
+SCENE_STUDY = {name: c.STUDY for c in contracts().values() for name in c.SCENES}
 FLAG = re.compile(r"[a-z][a-z0-9-]*")
 # names a generated rule's inputs and outputs cannot take: the rule's own inputs, and the names
 # Snakemake's named lists keep for themselves
@@ -39,6 +44,7 @@ class StageRule:
     inputs: tuple[tuple[str, str], ...]     # (argument, path under the build's folder)
     outputs: tuple[tuple[str, str], ...]
     local: bool                         # runs where Snakemake runs (a second's work), never queued
+    report: tuple[tuple[str, str], ...] = ()     # (output argument, its label in `snakemake --report`)
 
     @property
     def name(self) -> str:
@@ -55,6 +61,17 @@ class StageRule:
 
     def named_outputs(self, root: str) -> dict[str, str]:
         return {_key(k): f"{root}/{p}" for k, p in self.outputs}
+
+    def report_items(self, root: str) -> dict[str, tuple[str, str, str, dict]]:
+        """{output name: (path, caption, subcategory, labels)} of the outputs that are report items;
+        the caption relative to the rule files (workflow/rules/), as Snakemake's report() takes it."""
+        paths, items = dict(self.outputs), {}
+        for key, label in self.report:
+            path = posixpath.join(root, paths[key])
+            stem, ext = posixpath.splitext(posixpath.basename(path))
+            caption = f"../report/{SCENE_STUDY[self.scene]}/{stem}.rst"
+            items[_key(key)] = (path, caption, "figures" if ext == ".png" else "tables", {"result": label})
+        return items
 
 
 def _key(flag: str) -> str:
@@ -83,8 +100,8 @@ def _checked(stage: str, decl) -> StageRule:
     where = f"stage {stage}: its rule= declaration"
     if not isinstance(decl, dict) or not {"scene", "inputs", "outputs"} <= set(decl) or set(decl) - KEYS:
         raise TactilepipeError(f"{where} must be a dict of scene, inputs, outputs (and local), got {decl!r}")
-    if not isinstance(decl["scene"], str) or decl["scene"] not in SCENES:
-        raise TactilepipeError(f"{where}: scene '{decl['scene']}' is none of {', '.join(SCENES)}")
+    if not isinstance(decl["scene"], str) or decl["scene"] not in SCENE_STUDY:
+        raise TactilepipeError(f"{where}: scene '{decl['scene']}' is none of {', '.join(SCENE_STUDY)}")
     if not decl["outputs"]:
         raise TactilepipeError(f"{where}: a rule needs at least one output")
     flags = codedeps.stage_flags(stage)
@@ -106,5 +123,10 @@ def _checked(stage: str, decl) -> StageRule:
                                        f"folder (results/<build>/), outside its {' and '.join(OWN_FOLDERS)} "
                                        f"folders, e.g. volume/summary.json")
             files[key] = path
+    report = decl.get("report", {})
+    if not isinstance(report, dict) or any(k not in decl["outputs"] or not isinstance(v, str) or not v.strip()
+                                           for k, v in report.items()):
+        raise TactilepipeError(f"{where}: report must map some of its outputs' arguments to the label the report "
+                               f"lists each by, e.g. {{'out': 'Lifts per volume'}}, got {report!r}")
     return StageRule(stage, decl["scene"], tuple(decl["inputs"].items()), tuple(decl["outputs"].items()),
-                     bool(decl.get("local", False)))
+                     bool(decl.get("local", False)), tuple(report.items()))
