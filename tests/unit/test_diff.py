@@ -335,3 +335,15 @@ def test_runs_recorded_before_sessions_took_dvcs_hash_are_still_read_and_paired_
         assert (row.verdict, row.how) == ("signal", "paired over 8 draws"), name
     mixed = _row(diff.compare_scene("tool_normal", runs["old"][0], runs["new"][1]), "full", "mae")
     assert mixed.how == "intervals"
+
+
+def test_a_stage_that_declares_its_rule_in_a_scene_does_not_change_its_draws():
+    """Only the stages its study lists for the scene, and its simulator, fix the draws: a summary or
+    figure stage added to the scene (recorded in provenance.json) leaves the pairing alone."""
+    base = {"sessions": {"raw/volume/s1": "abc"},
+            "stages": {"volume-simulate": {"params": {"seed": 1}}, "volume-split": {"params": {"folds": 5}},
+                       "volume-report": {"params": {"x": 1}}}}
+    with_summary = {**base, "stages": {**base["stages"], "volume-summary": {"code_sha256": "f00"}}}
+    other_split = {**base, "stages": {**base["stages"], "volume-split": {"params": {"folds": 4}}}}
+    assert diff.draws_identity(with_summary, "volume") == diff.draws_identity(base, "volume")
+    assert diff.draws_identity(other_split, "volume") != diff.draws_identity(base, "volume")

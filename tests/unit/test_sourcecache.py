@@ -1,4 +1,4 @@
-"""Values kept between runs for the exact package source they came from (pipeline.sourcecache):
+"""Values kept between runs for the exact package source they came from (core.sourcecache):
 the stage code closures and the models' forward FLOPs."""
 
 from __future__ import annotations

@@ -50,7 +50,7 @@ STAGES = [  # (name, Snakemake targets); "{scale}" is written as DVC's ${scale},
 # or a dry run's scratch copy of a changed one (changed-params/...)
 STAMP = re.compile(r"^(results/[^/]+/params|/.*/changed-params)/([^/]+/)?[^/]+\.json$")
 COMMAND = "snakemake --cores 2 --workflow-profile workflow/profiles/default"
-# How DVC draws each figure's data (<figure>.csv beside it, pipeline/scenes.py PLOT_DATA): columns
+# How DVC draws each figure's data (<figure>.csv beside it, each study's contract.py PLOT_DATA): columns
 # as the figure modules write them, and one of DVC's own vega-lite templates
 DATA_PLOTS = {
     "mu_r2_curve.csv": {"x": "mu", "y": ["r2_train_mean", "r2_train_min", "r2_train_max"], "template": "linear",

@@ -13,10 +13,14 @@ package, not pipeline/. A contract module defines:
 - ``sessions(p)``, ``recordings(p, folder, session)``, ``ingest_inputs(recording, folder)``,
   ``files_on_disk(recording, folder)``, ``simulated_files(recordings, folder)``: its session reader;
 - ``metric_rows(p)``: its rows of DVC's metrics (core/metric_rows.py), the same in each scene;
-- ``targets(scene, results, p, sheet, data_only)``: every file a scene ends in;
+- ``targets(scene, results, p, sheet, data_only)``: every file a scene ends in (a scene made by one
+  report stage, as volume's and drift's: ``report_outputs(scene, results, p)``, what it writes);
 - ``caption_stem(stem, p)``: the caption file of a report item whose stem names two items;
 - ``scores``: how `tactilepipe diff` reads its scenes' scores.json (its scores_layout.py: the
   scored series, the draws two runs share, earlier layouts, the stages that leave the draws alone);
+- its part of the compute estimate a dry run prints (pipeline/estimate.py): ``MEASURED_RULES``
+  (rules whose jobs the last build timed), ``measured_seconds(p, rule, wildcards, runtimes)`` and
+  ``modelled_report(p, jobs, run_spec, build_dir)`` (lines; [] for none);
 - a study with training jobs of their own: ``RUN_STAGE``, ``run_definition(p, run)``,
   ``run_source_keys(p, run)`` (each run's parameter stamp, pipeline/stamp_keeper.py).
 """

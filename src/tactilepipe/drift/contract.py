@@ -33,7 +33,7 @@ def recordings(p: dict, folder: str, session: str) -> tuple[Recording, ...]:
     else:
         if not Path(folder).is_dir():
             raise InputError(folder, "session folder not found (params.yaml drift_session)")
-        stems = sorted(p.stem for p in Path(folder).glob("*.bag"))
+        stems = sorted(bag.stem for bag in Path(folder).glob("*.bag"))
         if not stems:
             raise InputError(folder, "no .bag files: the drift session's recordings are its bags")
     return tuple(Recording(STUDY, session, s, f"{folder}/{s}.bag", "bag") for s in stems)

@@ -132,13 +132,17 @@ class SceneDiff:
 
 # ----------------------------------------------------------------------------- reading a run
 
-def draws_identity(provenance: dict | None) -> str | None:
+def draws_identity(provenance: dict | None, scene: str) -> str | None:
     """What fixes a scene's draws: its recordings (by DVC's hash; older runs' own sha256 pairs only
-    with its kind) and every stage before the models (code, parameters): same identity, same draws."""
+    with its kind) and every stage before the models (code, parameters): same identity, same draws.
+    Only the stages its study lists for the scene, and its simulator, count: another stage that
+    declares its rule in the scene (a summary, a figure) makes no draw."""
     if not provenance:
         return None
+    own = set(SCENE_TABLE[scene].stages) | {CONTRACTS[SCENE_TABLE[scene].study].SIMULATOR}
     key = {"sessions": provenance.get("sessions"),
-           "stages": {s: v for s, v in sorted(provenance.get("stages", {}).items()) if s not in MODEL_STAGES}}
+           "stages": {s: v for s, v in sorted(provenance.get("stages", {}).items())
+                      if s in own and s not in MODEL_STAGES}}
     return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
 
 
@@ -225,7 +229,7 @@ def compare_scene(scene: str, old: dict | None, new: dict | None) -> SceneDiff:
         return SceneDiff(scene, note=f"not in {which}")
     out = SceneDiff(scene)
     old, new = ({**run, "metrics": current_layout(scene, run["metrics"])} for run in (old, new))
-    paired = draws_identity(old["provenance"]) == draws_identity(new["provenance"]) is not None
+    paired = draws_identity(old["provenance"], scene) == draws_identity(new["provenance"], scene) is not None
     # otherwise the draws whose baselines show them to be the same splits (a tool scene)
     shown = None if paired else draws_shown_same(scene, old["metrics"], new["metrics"])
     ratio = _test_train_ratio(scene, new)

@@ -5,20 +5,15 @@ Two numbers per rule:
 * booked: what the jobs ask the scheduler for (params.yaml `resources`, overlaid by the scale):
   jobs x threads x time limit (CPU-hours), jobs x GPUs x time limit (GPU-hours), memory per job.
   These are upper limits, not predictions.
-* modelled, for the training rule (nearly all of the compute at the paper scale; each study's
-  contract adds its own lines, the tool study's from tool/estimate.py): floating-point
-  operations of each run = epochs x (3 x forward FLOPs x training pairs + forward FLOPs x
-  validation pairs) + forward FLOPs x test pairs. Forward FLOPs per frame pair are counted on the
-  real model (torch's FlopCounterMode on the meta device: nothing is allocated, so ResNet-101 at
-  224 px costs a second, not gigabytes). Epochs are `tool_train.max_epochs` (early stopping only
-  shortens a run: an upper estimate). Pairs come from the dataset when it exists
-  (results/<build>/<scene>/data/samples.parquet), else from the simulator's session plan; the splits take
-  `tool_split.fractions`. FLOPs become hours through `resources.cost_model`: sustained GFLOP/s per
-  CPU core (measured here) and TFLOP/s of one GPU with mixed precision (assumed).
+* modelled, where a study models its jobs (its contract's ``modelled_report``; the tool study's
+  training runs, nearly all of the compute at the paper scale: tool/estimate.py): FLOPs become
+  hours through `resources.cost_model`, sustained GFLOP/s per CPU core (measured here) and TFLOP/s
+  of one GPU with mixed precision (assumed).
 * measured, where the last build of the same build folder left run times (its scenes'
-  runtime.json): a training job takes its run's train_s, a volume MLP or baseline job its method's
-  fit_s per fold x folds. The sum is the wall time of those jobs run one after another, on that
-  machine; jobs without a record (a new run, a first build) are counted apart, not guessed.
+  runtime.json) for a study's timed rules (its contract's ``MEASURED_RULES`` and
+  ``measured_seconds``: a training job its run's train_s, a volume MLP or baseline job its
+  method's fit_s per fold x folds). The sum is the wall time of those jobs run one after another,
+  on that machine; jobs without a record (a new run, a first build) are counted apart, not guessed.
 """
 
 from __future__ import annotations

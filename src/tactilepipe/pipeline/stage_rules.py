@@ -99,7 +99,7 @@ def declared_outputs(scenes, root: str) -> list[str]:
 def _checked(stage: str, decl) -> StageRule:
     where = f"stage {stage}: its rule= declaration"
     if not isinstance(decl, dict) or not {"scene", "inputs", "outputs"} <= set(decl) or set(decl) - KEYS:
-        raise TactilepipeError(f"{where} must be a dict of scene, inputs, outputs (and local), got {decl!r}")
+        raise TactilepipeError(f"{where} must be a dict of scene, inputs, outputs (and local, report), got {decl!r}")
     if not isinstance(decl["scene"], str) or decl["scene"] not in SCENE_STUDY:
         raise TactilepipeError(f"{where}: scene '{decl['scene']}' is none of {', '.join(SCENE_STUDY)}")
     if not decl["outputs"]:

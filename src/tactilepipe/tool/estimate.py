@@ -1,6 +1,12 @@
 """The tool study's part of the compute estimate `snakemake -n` prints (pipeline/estimate.py): the
-training runs' floating-point operations, from the real model's FLOP count and the data set's
-frame pairs (see that module's docstring), and each run's measured time in the last build."""
+training runs' modelled floating-point operations, and each run's measured time in the last build.
+
+Modelled FLOPs of a run = epochs x (3 x forward FLOPs x training pairs + forward FLOPs x validation
+pairs) + forward FLOPs x test pairs. Forward FLOPs per frame pair are counted on the real model
+(torch's FlopCounterMode on the meta device: nothing is allocated, so ResNet-101 at 224 px costs a
+second, not gigabytes). Epochs are `tool_train.max_epochs` (early stopping only shortens a run: an
+upper estimate). Pairs come from the dataset when it exists (results/<build>/<scene>/data/
+samples.parquet), else from the simulator's session plan; the splits take `tool_split.fractions`."""
 
 from __future__ import annotations
 

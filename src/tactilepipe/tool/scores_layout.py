@@ -18,7 +18,7 @@ FIRST_SPLIT_KEYS = ("mae", "rmse", "r2", "slope", "intercept")     # a model's s
 # stages whose change leaves the draws (splits) alone: the models and their report
 MODEL_STAGES = {"tool-train", "tool-model-report"}
 # compared as scored series, not as single values
-SINGLE_SKIP = {"per_split", "over_splits", "r2_folds", "r2_ci95"}
+SINGLE_SKIP = {"per_split", "over_splits"}
 
 
 def scored_keys(node: dict) -> set[str]:
