@@ -38,12 +38,12 @@ include: "workflow/rules/common.smk"
 include: "workflow/rules/dvc.smk"
 include: "workflow/rules/simulate.smk"
 include: "workflow/rules/ingest.smk"
+include: "workflow/rules/stages.smk"
 include: "workflow/rules/volume.smk"
 include: "workflow/rules/drift.smk"
 include: "workflow/rules/tool.smk"
 include: "workflow/rules/regimes.smk"
 include: "workflow/rules/study000.smk"
-include: "workflow/rules/stages.smk"
 
 
 rule all:

@@ -19,12 +19,15 @@ def test_the_declared_rules_are_read_from_the_source():
                                                    "--out 'results/my build/volume/folds.json'")
     assert split.named_outputs("results/smoke") == {"out": "results/smoke/volume/folds.json"}
     assert rules["volume-gridsearch"].local is False
+    # a stage with several outputs takes each as its own argument (no folder to write into)
+    assert dict(rules["volume-baseline"].outputs)["fold-scores"] == "volume/baseline/folds.csv"
     assert [r.stage for r in stage_rules.stage_rules(["drift"])] == []
 
 
 def test_a_declared_output_is_a_target_of_its_scene(smoke_params):
     declared = stage_rules.declared_outputs(["volume"], "results/smoke")
-    assert set(declared) == {"results/smoke/volume/folds.json", "results/smoke/volume/mlp/grid.csv"}
+    assert set(declared) == {"results/smoke/volume/folds.json", "results/smoke/volume/mlp/grid.csv"} | \
+        {f"results/smoke/volume/baseline/{f}" for f in ("predictions.parquet", "folds.csv", "mu_curve.csv", "mu.json")}
     assert stage_rules.declared_outputs(["drift", "tool_normal"], "results/smoke") == []
     # the report's outputs are the hand-written rules' targets, which the declared ones join
     hand = scene_targets(["volume"], "results/smoke", smoke_params, SessionSheet(smoke_params))

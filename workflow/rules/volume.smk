@@ -39,32 +39,12 @@ rule volume_train:
         "--folds {input.folds:q} --out-dir {params.out_dir:q} 2> {log:q}"
 
 
-rule volume_baseline:
-    input:
-        data=f"{VOLUME}/dataset.parquet",
-        folds=f"{VOLUME}/folds.json",
-        code=stage_code("volume-baseline"),
-        params=param_stamp("volume-baseline"),
-    output:
-        predictions=f"{VOLUME}/baseline/predictions.parquet",
-        folds=f"{VOLUME}/baseline/folds.csv",
-        curve=f"{VOLUME}/baseline/mu_curve.csv",
-        mu=f"{VOLUME}/baseline/mu.json",
-    resources:
-        **rule_resources("volume_baseline"),
-    log:
-        f"{LOGS}/volume/baseline.log",
-    shell:
-        "{CLI} volume-baseline --stamp {input.params:q} --dataset {input.data:q} --folds {input.folds:q} "
-        "--out-dir {VOLUME:q}/baseline 2> {log:q}"
-
-
 rule volume_report:
     input:
         mlp=expand(f"{VOLUME}/mlp/{{modality}}/{{f}}", modality=list(P["mlp"]["modalities"]),
                    f=["predictions.parquet", "folds.csv"]),
         grid=f"{VOLUME}/mlp/grid.csv",
-        baseline=rules.volume_baseline.output,
+        baseline=rules.volume_baseline.output,      # generated from its declaration (workflow/rules/stages.smk)
         qc=f"{VOLUME}/qc.csv",
         shards=shards("volume"),
         raw=session_files("volume"),
