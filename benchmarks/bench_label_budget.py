@@ -39,8 +39,7 @@ def families(base) -> dict[str, tuple[list, callable]]:
         "arrival stamps late s": ([0.02, 0.05, 0.1, 0.15, 0.2, 0.4], lambda t, m: fault.arrivals_late(t, m)),
         "port-open late s (no arrivals)": ([0.1, 0.3, 0.6], lambda t, m: fault.port_open_late(t, m)),
         "exposure step x": ([1.05, 1.1, 1.2, 1.4], lambda t, m: fault.exposure_step(t, "digit_left", m)),
-        "exposure step on both cameras x": ([1.1, 1.4], lambda t, m: [fault.exposure_step(t, s, m)
-                                                                      for s in ("digit_left", "digit_right")]),
+        "exposure step on both cameras x": ([1.1, 1.4], lambda t, m: fault.exposure_step_on_both(t, m)),
         "open gauge wire": ([2], lambda t, m: fault.open_gauge(t, m)),
         "another trial's samples": ([0], None),
         "cameras swapped": ([0], lambda t, m: fault.swap_cameras(t)),

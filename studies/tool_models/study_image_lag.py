@@ -17,20 +17,20 @@ from __future__ import annotations
 
 import argparse
 import glob
-import json
 
 import cv2
 import numpy as np
 import pyarrow.parquet as pq
 from sklearn.isotonic import IsotonicRegression
 
-from tactilepipe.tool.data.clock_sync import STEP_S, change_signal
+from tactilepipe.tool.data.clock_sync import STEP_S, _peak, change_signal
+from tactilepipe.tool.data.ingest import read_shard_info
 
 
 def _trial(path: str) -> tuple[dict, dict, np.ndarray, np.ndarray]:
     """The shard's record, each finger's (frame stamps, change signal), the force stamps and |F|."""
     table = pq.read_table(path).to_pandas()
-    info = json.loads(pq.read_schema(path).metadata[b"tactilepipe"])
+    info = read_shard_info(path)
     fingers = {}
     for sensor, rows in table[table.row == "frame"].groupby("sensor"):
         rows = rows.sort_values("t_ns")
@@ -42,7 +42,7 @@ def _trial(path: str) -> tuple[dict, dict, np.ndarray, np.ndarray]:
 
 def isotonic_lag(fingers: dict, force_ns: np.ndarray, mag: np.ndarray, lags: np.ndarray) -> float:
     """The lag (s) at which an isotonic fit of the change on |F| explains most of the change (mean
-    of the fingers' R²), refined by a parabola through its neighbours."""
+    of the fingers' R²), refined by a parabola through its neighbours as the pipeline's fit is."""
     ref = min(t[0] for t, _ in fingers.values())
     force_s = (force_ns - ref) / 1e9
     curves = []
@@ -55,14 +55,7 @@ def isotonic_lag(fingers: dict, force_ns: np.ndarray, mag: np.ndarray, lags: np.
             fit = IsotonicRegression().fit_transform(f, y)
             curve[k] = 1 - ((y - fit) ** 2).sum() / max(((y - y.mean()) ** 2).sum(), 1e-12)
         curves.append(curve)
-    mean = np.mean(curves, axis=0)
-    k = int(np.argmax(mean))
-    lag = float(lags[k])
-    if 0 < k < len(lags) - 1:
-        y0, y1, y2 = mean[k - 1:k + 2]
-        if (den := y0 - 2 * y1 + y2) < 0:
-            lag += 0.5 * (y0 - y2) / den * STEP_S
-    return lag
+    return _peak(lags, np.mean(curves, axis=0))[0]
 
 
 def main() -> None:

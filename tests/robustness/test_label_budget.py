@@ -85,8 +85,7 @@ FAULTS = {
     "another trial's samples": (lambda t, b: fault.samples_of(t, t.parent / OTHER), "witness '(clock|images)'"),
     "open gauge wire": (lambda t, b: fault.open_gauge(t, 2), "witness 'gauge wire'"),
     "exposure step on one camera": (lambda t, b: fault.exposure_step(t, "digit_left", 1.4), "witness 'exposure'"),
-    "exposure step on both cameras": (lambda t, b: [fault.exposure_step(t, s, 1.4) for s in ("digit_left", "digit_right")],
-                                      "witness 'exposure'"),
+    "exposure step on both cameras": (lambda t, b: fault.exposure_step_on_both(t, 1.4), "witness 'exposure'"),
     "every second frame repeated": (lambda t, b: fault.repeated_frames(t), None),
     "cameras swapped": (lambda t, b: fault.swap_cameras(t), None),      # no label changes: docs/robustness.md
     "one camera for both fingers": (lambda t, b: fault.one_camera_twice(t), "hold one camera's frames"),

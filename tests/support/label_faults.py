@@ -98,3 +98,9 @@ def exposure_step(trial: Path, sensor: str, gain: float) -> None:
     for p in paths[len(paths) // 2:]:
         img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED).astype(np.float32)
         cv2.imwrite(str(p), np.clip(img * gain, 0, 255).astype(np.uint8))
+
+
+def exposure_step_on_both(trial: Path, gain: float) -> None:
+    """The same exposure step on both cameras (a lighting change the whole rig sees)."""
+    for sensor in layout.SENSORS:
+        exposure_step(trial, sensor, gain)

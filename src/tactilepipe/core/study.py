@@ -30,6 +30,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from tactilepipe.core.metric_rows import metric_files
+
 
 @dataclass(frozen=True)
 class Recording:
@@ -53,6 +55,31 @@ def figure_files(folder: str, names, plot_data=()) -> list[str]:
     the figures of ``plot_data``, its data."""
     return [f"{folder}/{n}{ext}" for n in names
             for ext in (".png", ".svg") + ((".csv",) if n in plot_data else ())]
+
+
+def report_files(scene: str, results: str, rows, outputs) -> list[str]:
+    """A scene's metric rows (core/metric_rows.py) and its other ``outputs`` (paths under the
+    scene's folder), under results/<build>/<scene>/."""
+    return [f"{results}/{scene}/{f}" for f in metric_files(rows) + list(outputs)]
+
+
+# --- the plain answers, for a study with nothing more to say -----------------------------------------
+def recording_file(recording: Recording, folder: str) -> list[str]:
+    """A recording that is one file (a PapillArray bag): reading it opens that file alone."""
+    return [recording.path]
+
+
+def same_stem(stem: str, p: dict) -> str:
+    """Each report item's caption is named by its own file's stem."""
+    return stem
+
+
+def nothing_measured(p: dict, rule: str, wildcards: dict, runtimes) -> float | None:
+    return None
+
+
+def nothing_modelled(p: dict, jobs: list, run_spec, build_dir) -> list[str]:
+    return []
 
 
 # --- a scene's scores as `tactilepipe diff` reads them (each study's contract says where they are) --

@@ -36,6 +36,7 @@ from tactilepipe.core.intervals import paired_difference
 from tactilepipe.core.study import same_value as _same
 from tactilepipe.pipeline.run_files import current_layout, read_run  # noqa: F401 (read_run: diff's reader)
 from tactilepipe.pipeline.scenes import SCENES as SCENE_TABLE
+from tactilepipe.pipeline.scenes import contract
 from tactilepipe.studies import contracts
 
 CONTRACTS = contracts()
@@ -48,7 +49,7 @@ HIGHER_IS_BETTER = {"r2", "loo_r2"}
 
 def _scores(scene: str):
     """How the scene's study lays out its scores.json (its contract's scores_layout.py)."""
-    return CONTRACTS[SCENE_TABLE[scene].study].scores
+    return contract(scene).scores
 
 
 @dataclass
@@ -139,7 +140,7 @@ def draws_identity(provenance: dict | None, scene: str) -> str | None:
     declares its rule in the scene (a summary, a figure) makes no draw."""
     if not provenance:
         return None
-    own = set(SCENE_TABLE[scene].stages) | {CONTRACTS[SCENE_TABLE[scene].study].SIMULATOR}
+    own = set(SCENE_TABLE[scene].stages) | {contract(scene).SIMULATOR}
     key = {"sessions": provenance.get("sessions"),
            "stages": {s: v for s, v in sorted(provenance.get("stages", {}).items())
                       if s in own and s not in MODEL_STAGES}}

@@ -16,9 +16,7 @@ import json
 from tactilepipe.core.errors import InputError
 from tactilepipe.pipeline.layout import results_root
 from tactilepipe.pipeline.scenes import SCENES as SCENE_TABLE
-from tactilepipe.studies import contracts
-
-CONTRACTS = contracts()
+from tactilepipe.pipeline.scenes import contract
 
 
 def read_run(rev: str | None, repo: str = ".", scenes=tuple(SCENE_TABLE), build: str = "default") -> dict[str, dict | None]:
@@ -54,4 +52,4 @@ def read_run(rev: str | None, repo: str = ".", scenes=tuple(SCENE_TABLE), build:
 def current_layout(scene: str, metrics: dict) -> dict:
     """A scene's scores in today's layout: its study reads earlier revisions' layouts (a tool
     scene's first-split scores before scores.json: tool/scores_layout.py); today's as it is."""
-    return CONTRACTS[SCENE_TABLE[scene].study].scores.current_layout(metrics)
+    return contract(scene).scores.current_layout(metrics)

@@ -32,10 +32,15 @@ def study_of(name: str) -> str:
     return name if name in CONTRACTS else scene(name).study
 
 
+def contract(name: str):
+    """The contract (core/study.py) of a scene's study, or of the study ``name``."""
+    return CONTRACTS[study_of(name)]
+
+
 def metric_outputs(folder: str, name: str, p: dict) -> list[str]:
     """The files of a scene's rows of DVC's metrics (core/metric_rows.py) under its ``folder``;
     ``name``: the scene, or its study's name."""
-    return [f"{folder}/{f}" for f in metric_files(CONTRACTS[study_of(name)].metric_rows(p))]
+    return [f"{folder}/{f}" for f in metric_files(contract(name).metric_rows(p))]
 
 
 def provenance_stages(name: str, sheet: SessionSheet, simulator: str = "if simulated") -> tuple[list[str], list[str]]:
@@ -46,19 +51,19 @@ def provenance_stages(name: str, sheet: SessionSheet, simulator: str = "if simul
     sessions = sheet.sessions(s.study)
     simulated = simulator == "always" or any(is_simulated(x) for x in sessions)
     declared = [r.stage for r in stage_rules.stage_rules([name]) if r.stage not in s.stages]
-    return ([CONTRACTS[s.study].SIMULATOR] if simulated else []) + list(s.stages) + declared, \
+    return ([contract(name).SIMULATOR] if simulated else []) + list(s.stages) + declared, \
         [sheet.folder(s.study, x) for x in sessions]
 
 
 def scene_targets(names, results: str, p: dict, sheet: SessionSheet, data_only: bool = False) -> list[str]:
     """Every file the scenes' hand-written rules end in (``data_only``: a tool scene's data stages'
     only); the stages that declare their rules add theirs (stage_rules.declared_outputs)."""
-    return [f for name in names for f in CONTRACTS[scene(name).study].targets(name, results, p, sheet, data_only)]
+    return [f for name in names for f in contract(name).targets(name, results, p, sheet, data_only)]
 
 
 def report_outputs(name: str, results: str, p: dict) -> list[str]:
     """What the report stage of a scene with one report (volume, drift) writes."""
-    return CONTRACTS[scene(name).study].report_outputs(name, results, p)
+    return contract(name).report_outputs(name, results, p)
 
 
 def report_items(files, scene_name: str, p: dict) -> list[tuple[str, str | None, str | None, dict | None]]:
@@ -67,8 +72,7 @@ def report_items(files, scene_name: str, p: dict) -> list[tuple[str, str | None,
     twin is the item: the report shows HTML as a page, Markdown only as a download). ``scene_name``
     may be a study's name, for the rules' "{scene}" wildcard: a study's scenes share its captions
     (workflow/report/<study>/) and its labels (REPORT_LABELS of its contract)."""
-    group = study_of(scene_name)
-    contract = CONTRACTS[group]
+    group, study = study_of(scene_name), contract(scene_name)
     out = []
     for f in files:
         path = Path(f)
@@ -82,6 +86,6 @@ def report_items(files, scene_name: str, p: dict) -> list[tuple[str, str | None,
             out.append((f, None, None, None))
             f, path = str(path.with_suffix(".html")), path.with_suffix(".html")
         kind = "figures" if path.suffix == ".png" else "tables"
-        stem = contract.caption_stem(path.stem, p) if path.suffix == ".html" else path.stem
-        out.append((f, f"../report/{group}/{stem}.rst", kind, {"result": contract.REPORT_LABELS[stem]}))
+        stem = study.caption_stem(path.stem, p) if path.suffix == ".html" else path.stem
+        out.append((f, f"../report/{group}/{stem}.rst", kind, {"result": study.REPORT_LABELS[stem]}))
     return out

@@ -5,9 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tactilepipe.core.metric_rows import metric_files
 from tactilepipe.core.simulated import is_simulated
-from tactilepipe.core.study import Recording, Scene, figure_files
+from tactilepipe.core.study import Recording, Scene, figure_files, report_files
 from tactilepipe.tool import scores_layout as scores   # how `tactilepipe diff` reads its scores.json
 from tactilepipe.tool.scenes import TOOL_SCENES, scene_label
 
@@ -173,10 +172,9 @@ def data_targets(scene: str, results: str, p: dict, sheet) -> list[str]:
 
 def model_targets(scene: str, results: str, p: dict) -> list[str]:
     """Metrics, tables and figures of every trained model run of a tool scene."""
-    return [f"{results}/{scene}/{f}" for f in metric_files(metric_rows(p))] + \
-        [f"{results}/{scene}/{f}.json" for f in ("scores", "provenance", "runtime")] + \
-        [f"{results}/{scene}/tables/{t}.md" for t in model_tables(p)] + \
-        figure_files(f"{results}/{scene}/figures", model_figures(p), PLOT_DATA)
+    return report_files(scene, results, metric_rows(p),
+                        [f"{f}.json" for f in ("scores", "provenance", "runtime")] +
+                        [f"tables/{t}.md" for t in model_tables(p)] + figures("figures", model_figures(p)))
 
 
 def targets(scene: str, results: str, p: dict, sheet, data_only: bool = False) -> list[str]:

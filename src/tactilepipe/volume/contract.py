@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tactilepipe.core.metric_rows import metric_files
 from tactilepipe.core.simulated import is_simulated
-from tactilepipe.core.study import Recording, Scene, figure_files
+from tactilepipe.core.study import (Recording, Scene, figure_files, nothing_modelled, recording_file, report_files,
+                                    same_stem)
 from tactilepipe.volume import scores_layout as scores   # how `tactilepipe diff` reads its scores.json
 
 STUDY = "volume"
@@ -46,12 +46,8 @@ def recordings(p: dict, folder: str, session: str) -> tuple[Recording, ...]:
     return tuple(Recording(STUDY, session, s, f"{folder}/{s}.bag", "bag") for s in stems)
 
 
-def ingest_inputs(recording: Recording, folder: str) -> list[str]:
-    return [recording.path]
-
-
-def files_on_disk(recording: Recording, folder: str) -> list[str]:
-    return [recording.path]
+ingest_inputs = files_on_disk = recording_file       # a bag: its ingest reads it alone
+caption_stem = same_stem
 
 
 def simulated_files(recordings: tuple[Recording, ...], folder: str) -> list[str]:
@@ -65,19 +61,16 @@ def metric_rows(p: dict) -> list[str]:
 
 def report_outputs(scene: str, results: str, p: dict) -> list[str]:
     """What the report stage writes: the metric rows and OUTPUTS."""
-    return [f"{results}/{scene}/{f}" for f in metric_files(metric_rows(p)) + OUTPUTS]
+    return report_files(scene, results, metric_rows(p), OUTPUTS)
 
 
 def targets(scene: str, results: str, p: dict, sheet, data_only: bool = False) -> list[str]:
     return report_outputs(scene, results, p)
 
 
-def caption_stem(stem: str, p: dict) -> str:
-    return stem
-
-
 # --- the compute estimate of `snakemake -n` (pipeline/estimate.py) ---------------------------------
 MEASURED_RULES = ("volume_train", "volume_baseline")
+modelled_report = nothing_modelled
 
 
 def measured_seconds(p: dict, rule: str, wildcards: dict, runtimes) -> float | None:
@@ -86,6 +79,3 @@ def measured_seconds(p: dict, rule: str, wildcards: dict, runtimes) -> float | N
     fit_s = runtimes("volume").get(method, {}).get("fit_s")
     return None if fit_s is None else fit_s * p["folds"]["n_folds"]
 
-
-def modelled_report(p: dict, jobs: list, run_spec, build_dir) -> list[str]:
-    return []
