@@ -8,6 +8,14 @@ difference into split composition, model seed and test sampling (tool/report/noi
 one table per scene: each component's standard deviation, the interval half-width of today's design
 (K repeats, one seed) and of designs with more repeats or seeds, and what a run costs.
 
+A second table asks what any design of this data size can decide, at the build's own mean difference
+(its scores.json, all its repeats): the half-width's floor with endless repeats and seeds (the split
+term holds at least the test sampling: only more test trials shrink it), and the repeats K that
+decide the ordering with even odds (the interval just reaches the mean) and with 80 % power, with
+one seed per split and with seed noise removed (what endless seeds, an ensemble or weight averaging
+could at best do). The seed ensemble's own test sampling is measured too: the prediction of each
+split's seeds averaged, so an ensemble is not assumed to shrink that term.
+
 Needs a built scene (`make run`). Runs go to --work-dir and are reused when the script runs again.
     python studies/tool_models/study_noise.py [--scenes tool_normal tool_shear] [--splits 3] [--seeds 3] [--jobs 2]
 About 100 s per training run on one core at the default scale (width 32, 8 epochs).
@@ -29,6 +37,8 @@ import pandas as pd
 from tactilepipe.core.atomic import write_json
 from tactilepipe.tool.data.loader import ToolFrames
 from tactilepipe.tool.model.evaluate import linear_fit_predictions, tactile_rmse_features
+from scipy import stats
+
 from tactilepipe.tool.report.noise import bootstrap_difference_variance, decompose, half_width
 from tactilepipe.tool.scenes import scene_label
 
@@ -89,6 +99,42 @@ def errors(run_dir: Path) -> pd.DataFrame:
     return p.assign(abs_err=(p["pred"] - p["true"]).abs())
 
 
+def ensemble(runs: dict, variant: str, k: int, seeds: int) -> pd.DataFrame:
+    """The seeds' predictions on split k averaged (one model's worth of test rows)."""
+    first = runs[(variant, k, 0)]
+    pred = np.mean([runs[(variant, k, m)]["pred"].reindex(first.index) for m in range(seeds)], axis=0)
+    return first.assign(pred=pred, abs_err=np.abs(pred - first["true"]))
+
+
+def repeats_to_decide(need: float, var_split: float, var_seed: float, ratio: float, power: float) -> int | None:
+    """Fewest K (one seed each) whose t interval, widened by the power's z, fits inside ``need``;
+    None when none up to 1,000 does."""
+    if not need > 0:
+        return None
+    z = stats.norm.ppf(power) if power > 0.5 else 0.0
+    for k in range(2, 1001):
+        se = np.sqrt((1 / k + ratio) * var_split + var_seed / k)
+        if (stats.t.ppf(0.975, k - 1) + z) * se <= need:
+            return k
+    return None
+
+
+def decidable(parts: dict, built: dict, var_test_ensemble: float, seeds: int) -> dict:
+    """What designs of this data size can decide, at the build's mean difference and margin: one model
+    per split, or an ensemble of ``seeds`` seeds per split (its seed noise taken as a 1/seeds share,
+    its test sampling as measured)."""
+    var_split = max(parts["var_split"], parts["var_test"])   # a split's term holds its test sampling
+    var_split_ens = var_split - parts["var_test"] + var_test_ensemble
+    ratio, mean, margin = parts["test_train_ratio"], abs(built["mae_difference"]), built["margin"]
+    need = max(mean, margin - mean)   # to exclude 0, or to fit inside the margin
+    z = stats.norm.ppf(0.975)
+    return {"built_mean": built["mae_difference"], "built_verdict": built["verdict"], "need": need,
+            "floor": float(z * np.sqrt(ratio * var_split)), "floor_ensemble": float(z * np.sqrt(ratio * var_split_ens)),
+            "K_even": repeats_to_decide(need, var_split, parts["var_seed"], ratio, 0.5),
+            "K_80": repeats_to_decide(need, var_split, parts["var_seed"], ratio, 0.8),
+            "K_80_ensemble": repeats_to_decide(need, var_split_ens, parts["var_seed"] / seeds, ratio, 0.8)}
+
+
 def study_scene(args, scene: str, pool: ThreadPoolExecutor) -> dict:
     variants = sorted({v for pair in ORDERINGS[scene] for v in pair if v != BASELINE})
     jobs = {(v, k, m): pool.submit(train, args, scene, v, k, m)
@@ -99,6 +145,8 @@ def study_scene(args, scene: str, pool: ThreadPoolExecutor) -> dict:
               for k in range(args.splits)]
     base = dict(enumerate(baseline_errors(args, scene, splits)))
     ratio = float(np.mean([len(s["test"]) / len(s["train"]) for s in splits]))
+    scores = json.loads((args.build_dir / scene / "scores.json").read_text())
+    built = {(o["better"], o["worse"]): o for o in scores["paper_orderings"] + [scores["full_versus_baseline"]]}
     rows = []
     for better, worse in ORDERINGS[scene]:
         d = np.zeros((args.splits, args.seeds))
@@ -111,8 +159,15 @@ def study_scene(args, scene: str, pool: ThreadPoolExecutor) -> dict:
                 d[k, m] = a["abs_err"].mean() - b.mean()
                 tv[k, m] = bootstrap_difference_variance(a["abs_err"], b, a["trial"], seed=k * 100 + m)
         parts = decompose(d, tv, ratio)
-        rows.append({"ordering": f"{better} < {worse}", **parts,
-                     **{f"half_K{K}_M{M}": half_width(parts, K, M) for K, M in DESIGNS}})
+        ens_tv = []
+        for k in range(args.splits):
+            a = ensemble(runs, better, k, args.seeds)
+            b = base[k] if worse == BASELINE else ensemble(runs, worse, k, args.seeds)["abs_err"]
+            ens_tv.append(bootstrap_difference_variance(a["abs_err"], b.reindex(a.index), a["trial"], seed=k * 100))
+        var_test_ensemble = float(np.nanmean(ens_tv))
+        rows.append({"ordering": f"{better} < {worse}", **parts, "var_test_ensemble": var_test_ensemble,
+                     **{f"half_K{K}_M{M}": half_width(parts, K, M) for K, M in DESIGNS},
+                     **decidable(parts, built[(better, worse)], var_test_ensemble, args.seeds)})
     return {"scene": scene, "rows": rows, "run_s_median": float(np.median(costs)), "test_train_ratio": ratio}
 
 
@@ -124,6 +179,15 @@ def table(result: dict) -> str:
         sd = [np.sqrt(r[k]) for k in ("var_split", "var_seed", "var_test", "var_composition")]
         lines.append(f"| {r['ordering']} | {r['mean']:+.3f} | " + " | ".join(f"{v:.3f}" for v in sd) + " | "
                      + " | ".join(f"{r[f'half_K{K}_M{M}']:.3f}" for K, M in DESIGNS) + " |")
+    lines += ["", f"What any design of this data size decides, at the build's mean ({result['scene']}):", "",
+              "| ordering | built: mean diff (N), verdict | room to decide (N) | sd test: one model / ensemble | "
+              "floor ±: one model / ensemble | K, even odds | K, 80 % power | K, 80 % power, ensembles |",
+              "|---|---|---|---|---|---|---|---|"]
+    for r in result["rows"]:
+        ks = [str(r[key]) if r[key] else "none" for key in ("K_even", "K_80", "K_80_ensemble")]
+        lines.append(f"| {r['ordering']} | {r['built_mean']:+.3f}, {r['built_verdict']} | {r['need']:.3f} | "
+                     f"{np.sqrt(r['var_test']):.3f} / {np.sqrt(r['var_test_ensemble']):.3f} | "
+                     f"{r['floor']:.3f} / {r['floor_ensemble']:.3f} | " + " | ".join(ks) + " |")
     return "\n".join(lines)
 
 

@@ -54,3 +54,44 @@ def test_the_test_sampling_bootstrap_moves_whole_trials():
 def test_fewer_than_two_splits_or_seeds_is_refused():
     with pytest.raises(TactilepipeError, match="2 splits x 2 seeds"):
         decompose(np.zeros((3, 1)), np.zeros((3, 1)), 0.2)
+
+
+def _study_noise():
+    """studies/tool_models/study_noise.py, imported from its file (studies are scripts, not a package)."""
+    import importlib.util
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[2] / "studies" / "tool_models" / "study_noise.py"
+    spec = importlib.util.spec_from_file_location("study_noise", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_repeats_that_decide_are_the_fewest_whose_interval_fits_and_none_below_the_floor():
+    from scipy import stats
+    study = _study_noise()
+    var_split, var_seed, ratio = 0.09, 0.05, 0.25
+
+    def reach(k, power):
+        z = stats.norm.ppf(power) if power > 0.5 else 0.0
+        return (stats.t.ppf(0.975, k - 1) + z) * math.sqrt((1 / k + ratio) * var_split + var_seed / k)
+
+    for need, power in ((0.40, 0.5), (0.60, 0.8)):
+        k = study.repeats_to_decide(need, var_split, var_seed, ratio, power)
+        assert k is not None and reach(k, power) <= need < reach(k - 1, power)
+    # 80 % power adds z = 0.84 to the floor: 0.40 is within reach at even odds, never at 80 %
+    assert study.repeats_to_decide(0.40, var_split, var_seed, ratio, 0.8) is None
+    floor = 1.96 * math.sqrt(ratio * var_split)   # endless repeats: 0.294
+    assert study.repeats_to_decide(floor * 0.99, var_split, var_seed, ratio, 0.5) is None
+    assert study.repeats_to_decide(0.0, var_split, var_seed, ratio, 0.5) is None
+
+
+def test_what_a_design_decides_takes_the_split_term_as_at_least_its_test_sampling():
+    study = _study_noise()
+    parts = {"var_split": 0.0, "var_seed": 0.0035, "var_test": 0.028 ** 2, "test_train_ratio": 0.25}
+    built = {"mae_difference": -0.022, "margin": 0.036, "verdict": "undecided"}
+    out = study.decidable(parts, built, var_test_ensemble=0.021 ** 2, seeds=3)
+    assert out["need"] == pytest.approx(0.022)              # |mean| beats margin - |mean| = 0.014
+    assert out["floor"] == pytest.approx(1.96 * 0.5 * 0.028, rel=1e-3)
+    assert out["floor_ensemble"] == pytest.approx(1.96 * 0.5 * 0.021, rel=1e-3)
+    assert out["K_even"] is None and out["K_80"] is None    # the one-model floor 0.027 N is above 0.022 N
