@@ -38,7 +38,6 @@ while time.time() < end:
 def untrained_checkpoint(p: dict, path: Path, size: int | None = None) -> Path:
     """A checkpoint of a freshly initialised full model of ``p``'s depth, width and input size
     (``size``, default ``tool_train.image_size``), with the metadata the trainer writes."""
-    import dataclasses
     import torch
     from tactilepipe.tool.model.network import build_model
     from tactilepipe.tool.model.checkpoint import CHECKPOINT_FORMAT
@@ -52,7 +51,7 @@ def untrained_checkpoint(p: dict, path: Path, size: int | None = None) -> Path:
     meta = {"variant": "full", "depth": tt["depth"], "image_size": size, "gam_channel_gate": tt["gam_channel_gate"],
             "width": tt["width"], "normalise": "minmax", "label_stats": {"min": 0.0, "max": 30.0, "mean": 5.0, "std": 5.0}}
     model = build_model("full", tt["depth"], size, tt["gam_channel_gate"], tt["width"])
-    torch.save({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "config": dataclasses.asdict(cfg),
+    torch.save({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "config": cfg.model_dump(),
                 "meta": meta}, path)
     return path
 

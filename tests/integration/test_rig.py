@@ -5,7 +5,6 @@ pseudo-terminal that pyserial opens (tests/support/standin_rig.py)."""
 
 from __future__ import annotations
 
-import dataclasses
 import io
 import json
 import re
@@ -139,7 +138,7 @@ def _random_checkpoint(path: Path) -> Path:
                 p.normal_(0, 0.1) if p.dim() > 1 else p.fill_(1.0)
     meta = {"variant": "full", "depth": 18, "image_size": 16, "normalise": "minmax", "width": 8,
             "gam_channel_gate": "sigmoid", "label_stats": {"min": 0.0, "max": 30.0, "mean": 5.0, "std": 5.0}}
-    cfg = dataclasses.asdict(quick_cfg(image_size=16, width=8))
+    cfg = quick_cfg(image_size=16, width=8).model_dump()
     torch.save({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "config": cfg, "meta": meta}, path)
     return path
 

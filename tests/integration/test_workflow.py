@@ -18,6 +18,7 @@ import yaml
 
 from tactilepipe.core.config import load_params
 from tactilepipe.tool.model.network import PAPER_WIDTH, build_model, count_parameters
+from tactilepipe.tool.model.checkpoint import load_checkpoint
 from tactilepipe.tool.report.portability import run_digests
 from tactilepipe.tool.runs import sweep_run_name, tool_runs
 
@@ -489,6 +490,51 @@ def test_a_training_key_re_runs_exactly_the_runs_that_read_it(smoke_build: Path,
     assert faster == _trainings(TOOL_SCENES, every) | reports, faster
     assert not {rule for rule, _w in sized | faster} & UPSTREAM_OF_TRAINING
     assert "Nothing to be done" in snakemake(wd, "-n", "--config", "scale=smoke").stdout   # the dry runs wrote no stamp
+
+
+# A new training setting, as a user adds one: its value, its typed field, the line that uses it
+NEW_SETTING = {
+    "params.yaml": ("\n  lr: 0.0002 ", "\n  weight_decay: 0.01        # Adam's L2 penalty\n  lr: 0.0002 "),
+    "src/tactilepipe/core/parameters/training.py": (
+        "\n    lr: float = Field(",
+        "\n    weight_decay: float = Field(ge=0, le=1, description=\"Adam's L2 penalty\")\n    lr: float = Field("),
+    "src/tactilepipe/tool/model/train.py": (
+        "        opt = make_optimizer(model, cfg.lr)\n",
+        "        opt = make_optimizer(model, cfg.lr)\n        opt.param_groups[0][\"weight_decay\"] = cfg.weight_decay\n"),
+}
+
+
+def _replace_in_copy(path: Path, old: str, new: str) -> None:
+    """Replace ``old`` (once) in a file of a copied project, as a file of its own."""
+    text = path.read_text()
+    assert text.count(old) == 1, (path, old)
+    path.unlink()
+    path.write_text(text.replace(old, new))
+
+
+def test_a_new_training_setting_is_three_files_and_re_runs_only_the_trainings(smoke_build: Path, tmp_path: Path):
+    """A training setting is its value in params.yaml, its field in the typed settings and the line
+    of training that reads it (the schema is generated): nothing in the stage's declaration, its
+    configuration or the rules. Snakemake plans every training and the two model reports, nothing
+    upstream; dvc.yaml needs no change; trained, the run's stamp and checkpoint hold the value and
+    its weights differ from the build's."""
+    wd = shutil.copytree(smoke_build, tmp_path / "wd", symlinks=True)
+    for name, (old, new) in NEW_SETTING.items():
+        _replace_in_copy(wd / name, old, new)
+    run([str(BIN / "python"), "workflow/scripts/params_schema.py"], wd)       # generated, not written by hand
+    p = load_params(smoke_build / "params.yaml", {"scale": "smoke"})     # the runs are the build's
+    every = tool_runs(p["tool_train"], p["tool_split"]["repeats"], p["simulate_tool"]["tools_used"])
+    planned = _planned_jobs(snakemake(wd, "-n", "--config", "scale=smoke"))
+    assert planned == _trainings(TOOL_SCENES, every) | {("tool_model_report", f"scene={s}") for s in TOOL_SCENES}, \
+        planned
+    assert run([str(BIN / "python"), "workflow/scripts/dvc_yaml.py", "--check"], wd).returncode == 0
+    before = run_digests(results(wd))["tool_normal/full"]
+    snakemake(wd, f"{SMOKE}/tool_normal/models/full/eval.json", "--config", "scale=smoke", "scenes=[tool_normal]")
+    stamp = json.loads((results(wd) / "params/tool-train/full.json").read_text())
+    assert stamp["values"]["tool_train"]["weight_decay"] == 0.01
+    checkpoint = load_checkpoint(results(wd) / "tool_normal/models/full/best.pt")
+    assert checkpoint["config"]["weight_decay"] == 0.01
+    assert run_digests(results(wd))["tool_normal/full"]["weights"] != before["weights"]
 
 
 def test_a_simulator_key_re_runs_only_the_scenes_that_simulate_with_it(smoke_build: Path, tmp_path: Path):

@@ -93,7 +93,7 @@ def main() -> None:
         y = torch.from_numpy(rng.integers(0, 1 << 16, b).astype(np.float32) / np.float32(1 << 16))
         cfg = TrainConfig(variant=args.variant, depth=args.depth, image_size=s, lr=2e-4, lr_schedule="cosine",
                           batch_size=b, max_epochs=8, patience=3, normalise="minmax", seed=2026, device="cpu",
-                          amp=True, num_threads=1, max_train_batches_per_epoch=None, bn_recalibration_batches=20,
+                          amp=True, num_threads=1, max_train_batches_per_epoch=0, bn_recalibration_batches=20,
                           gam_channel_gate="sigmoid", width=width, kernels="portable")
         with hasher:
             hasher.phase = f"w{width} init"

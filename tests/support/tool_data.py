@@ -65,7 +65,7 @@ def make_split_dict(data: ToolFrames) -> dict:
 def quick_cfg(**kw) -> TrainConfig:
     """A small, fast training set-up; every field spelled out (TrainConfig has no defaults)."""
     base = dict(variant="full", depth=18, image_size=S, lr=2e-4, lr_schedule="constant", batch_size=24, max_epochs=3,
-                patience=None, normalise="minmax", seed=7, device="auto", amp=True, num_threads=TORCH_THREADS,
-                max_train_batches_per_epoch=None, bn_recalibration_batches=20, gam_channel_gate="sigmoid",
+                patience=10000, normalise="minmax", seed=7, device="auto", amp=True, num_threads=TORCH_THREADS,
+                max_train_batches_per_epoch=0, bn_recalibration_batches=20, gam_channel_gate="sigmoid",
                 width=16, kernels="native")
     return TrainConfig(**{**base, **kw})

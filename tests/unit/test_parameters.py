@@ -11,7 +11,7 @@ import pytest
 
 from tactilepipe.core.config import PARAMS_SCHEMA, load_params
 from tactilepipe.core.errors import ConfigError
-from tactilepipe.core.parameters import Params, ScaleOverlay
+from tactilepipe.core.parameters.params_file import Params, ScaleOverlay
 from tactilepipe.core.parameters.base import Group
 from tactilepipe.core.parameters.schema import params_schema
 

@@ -3,7 +3,6 @@ the file, never a library's exception from deep inside."""
 
 from __future__ import annotations
 
-import dataclasses
 import io
 
 import pytest
@@ -29,7 +28,7 @@ def trial(tmp_path_factory):
 def _checkpoint(path, weights_variant="full", **meta):
     cfg = quick_cfg(image_size=16, width=8)
     torch.save({"format": CHECKPOINT_FORMAT, "model": build_model(weights_variant, 18, 16, "sigmoid", 8).state_dict(),
-                "config": dataclasses.asdict(cfg), "meta": {**META, **meta}}, path)
+                "config": cfg.model_dump(), "meta": {**META, **meta}}, path)
     return path
 
 

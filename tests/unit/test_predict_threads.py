@@ -3,7 +3,6 @@ setting back (the rate itself: benchmarks/bench_predict_load.py)."""
 
 from __future__ import annotations
 
-import dataclasses
 import io
 
 import torch
@@ -24,7 +23,7 @@ def test_predict_streams_on_the_configured_threads_and_restores_them(tmp_path, m
     meta = {"variant": "full", "depth": 18, "image_size": 16, "normalise": "minmax",
             "label_stats": {"min": 0.0, "max": 30.0, "mean": 5.0, "std": 5.0}}
     torch.save({"format": CHECKPOINT_FORMAT, "model": build_model("full", 18, 16, "sigmoid", PAPER_WIDTH).state_dict(),
-                "config": dataclasses.asdict(cfg), "meta": meta}, tmp_path / "m.pt")
+                "config": cfg.model_dump(), "meta": meta}, tmp_path / "m.pt")
     seen = []
     real = torch.set_num_threads
     monkeypatch.setattr(torch, "set_num_threads", lambda n: (seen.append(n), real(n)))

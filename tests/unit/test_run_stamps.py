@@ -25,7 +25,7 @@ SMOKE = {"scale": "smoke"}
 def run_stamp(p: dict, run: str) -> dict:
     """The stamp the workflow writes for ``run`` under the resolved parameters ``p``."""
     text = stamps.run_stamp_text(runs.run_definition(p, run), codedeps.stage_param_keys("tool-train"),
-                                 runs.run_source_keys(p["tool_train"], run), p)
+                                 codedeps.stage_graph_keys("tool-train"), runs.run_source_keys(p["tool_train"], run), p)
     return json.loads(text)
 
 

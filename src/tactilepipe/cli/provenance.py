@@ -16,7 +16,7 @@ def write_scene_provenance(args, out_dir: Path) -> None:
     from tactilepipe.core.config import declared, load_params
     from tactilepipe.pipeline import codedeps
     from tactilepipe.pipeline.provenance import write_provenance
-    from tactilepipe.pipeline.stamps import TRAIN_STAGE, stamp_values
+    from tactilepipe.pipeline.stamps import TRAIN_STAGE, run_values, stamp_values
     if args.stamp:
         # beside the report's own stamp (results/<build>/params/), but where the workflow names one
         # elsewhere: a simulator's is its scale's, shared by every build of that scale
@@ -27,7 +27,8 @@ def write_scene_provenance(args, out_dir: Path) -> None:
                   for s in args.provenance_stages}
     else:
         resolved = load_params(args.params, param_overrides(args))
-        values = {s: resolved for s in args.provenance_stages}
+        values = {s: run_values(resolved, codedeps.stage_param_keys(s), codedeps.stage_graph_keys(s))
+                  if s == TRAIN_STAGE else resolved for s in args.provenance_stages}
     given = {s: declared(values[s], codedeps.stage_param_keys(s), s) for s in args.provenance_stages}
     write_provenance(out_dir / "provenance.json", given, args.sessions)
 

@@ -12,12 +12,12 @@ from tactilepipe.tool.checks import check as tool_check
 
 @command("tool-train", "train one tool-force model run, predict its test set",
          checks=(tool_check,),
-         params=("seed", "tool_train.lr", "tool_train.lr_schedule", "tool_train.batch_size", "tool_train.max_epochs",
-                 "tool_train.patience", "tool_train.max_train_batches_per_epoch", "tool_train.bn_recalibration_batches",
-                 "tool_train.device", "tool_train.amp", "tool_train.num_threads", "tool_train.gam_channel_gate",
-                 "tool_train.width", "tool_train.kernels"),
-         # the run's own values (variant and its architecture, split name, depth, input size) are in its
+         # tool_train but its graph keys: those lay out the runs, and each run reads them through its own
+         # definition (variant and its architecture, split name, depth, input size), under `run` in its
          # stamp, results/<build>/params/tool-train/<run>.json (pipeline/stamps.py run_stamp_text)
+         params=("seed", "tool_train"),
+         graph=("tool_train.variants", "tool_train.split", "tool_train.loto", "tool_train.depth",
+                "tool_train.image_size", "tool_train.sweep"),
          args=(SCENE, arg("--data-dir", required=True),
                arg("--split", required=True, help="split file (results/<build>/<scene>/splits/<name>.json)"),
                arg("--out-dir", required=True),

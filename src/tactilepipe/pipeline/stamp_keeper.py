@@ -67,7 +67,7 @@ class StampKeeper:
         new variant, re-runs only those."""
         c = CONTRACTS[study]
         text = stamps.run_stamp_text(c.run_definition(self.p, run), codedeps.stage_param_keys(c.RUN_STAGE),
-                                     c.run_source_keys(self.p, run), self.p)
+                                     codedeps.stage_graph_keys(c.RUN_STAGE), c.run_source_keys(self.p, run), self.p)
         return self._current(self.params_dir, f"{c.RUN_STAGE}/{run}.json", text)
 
     def content(self, recording: Recording, output: str) -> str:

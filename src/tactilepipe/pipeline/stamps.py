@@ -35,11 +35,28 @@ TRAIN_STAGE = "tool-train"
 RUN_FIELDS = ("name", "variant", "split", "depth", "image_size")
 
 
-def run_stamp_text(run: dict, keys: tuple[str, ...], source_keys: tuple[str, ...], resolved: dict) -> str:
-    """The stamp of the training job of ``run`` (its definition, tool/runs.py ``run_definition``):
-    the values of the stage's declared ``keys`` and the run; ``source_keys`` are where the run's
-    values come from in params.yaml (listed for DVC, as a stage stamp's graph keys)."""
+def run_values(resolved: dict, keys: tuple[str, ...], graph_keys: tuple[str, ...]) -> dict:
+    """What every run of the training stage reads: the values of its declared ``keys`` but its
+    ``graph_keys``, which lay out the runs (a run reads them through its definition, under ``run``),
+    so that a new variant or sweep entry re-stamps no other run."""
     values = json.loads(json.dumps(declared(resolved, keys, TRAIN_STAGE)))
+    for key in graph_keys:
+        *parents, leaf = key.split(".")
+        node = values
+        for part in parents:
+            node = node.get(part) if isinstance(node, dict) else None
+        if isinstance(node, dict):
+            node.pop(leaf, None)
+    return values
+
+
+def run_stamp_text(run: dict, keys: tuple[str, ...], graph_keys: tuple[str, ...], source_keys: tuple[str, ...],
+                   resolved: dict) -> str:
+    """The stamp of the training job of ``run`` (its definition, tool/runs.py ``run_definition``):
+    the values of the stage's declared ``keys`` but its ``graph_keys`` (``run_values``), and the run;
+    ``source_keys`` are where the run's values come from in params.yaml (listed for DVC, as a stage
+    stamp's graph keys)."""
+    values = run_values(resolved, keys, graph_keys)
     if "run" in values:
         raise TactilepipeError(f"the {TRAIN_STAGE} stage declares a parameter group named 'run', the name its "
                                f"stamps hold the run's definition under")

@@ -6,6 +6,7 @@ from typing import Annotated, Literal
 from pydantic import Field, NonNegativeFloat, PositiveFloat
 
 from tactilepipe.core.parameters.base import Group, Pair, RequiredKeys, Triple, UniqueList
+from tactilepipe.core.parameters.training import Kernels, TrainingSettings
 from tactilepipe.core.tool_vocabulary import BASELINES, RESNET_DEPTHS
 
 Depth = Literal[tuple(RESNET_DEPTHS)]      # the depths the network builds (core/tool_vocabulary.py)
@@ -13,7 +14,6 @@ Baseline = Literal[BASELINES]              # the baselines the model report fits
 # A variant's name is the first part of its run names (tool/runs.py), which are [a-z_0-9]+; that no
 # name reads as another run ("<name>_r<k>", "full_<...>") is checked with the other groups (config.py).
 VariantName = Annotated[str, Field(pattern=r"^[a-z][a-z0-9]*(_[a-z0-9]+)*$")]
-Kernels = Literal["portable", "native"]
 
 
 class ClockSync(Group):
@@ -127,8 +127,10 @@ class ToolVariant(Group):
     doc: str = Field(description="what it is, in a sentence")
 
 
-class ToolTrain(Group):
-    """The CNN + GAM + ResNet model of study 000 and its ablations."""
+class ToolTrain(TrainingSettings):
+    """The CNN + GAM + ResNet model of study 000 and its ablations: the runs (which variants, split,
+    depth and input size; the workflow reads these to lay out the training jobs, each run through
+    its own definition) and the settings every run trains with."""
 
     variants: Literal["all"] | UniqueList[str] = Field(
         min_length=1, description="the model variants to train: all (every one tool_variants defines, in its "
@@ -140,32 +142,6 @@ class ToolTrain(Group):
                                                        "(the dataset's frames are area-downscaled to it; at most "
                                                        "1024, the largest tool_ingest.stored_size)")
     sweep: list[SweepRun]
-    lr: float = Field(gt=0, le=10, description="Adam's learning rate (at most 10: far above any rate that trains; "
-                                               "the paper's is 1e-3)")
-    lr_schedule: Literal["constant", "cosine"] = Field(
-        description="constant: Adam at lr throughout (the paper); cosine: per batch from lr down to 0 at max_epochs")
-    batch_size: int = Field(ge=1, le=65536, description="frame pairs per batch (at most 65536: a batch of 64-px "
-                                                       "pairs that size is 4 GB of input alone)")
-    max_epochs: int = Field(ge=1, le=10000, description="at most 10000 (the default scale trains 8)")
-    patience: int = Field(ge=1, le=10000, description="epochs without a better validation loss before stopping "
-                                                     "(at most 10000, as max_epochs)")
-    max_train_batches_per_epoch: int = Field(ge=0, le=10**7, description="0 = the whole training split every epoch; "
-                                                                         "at most 1e7")
-    bn_recalibration_batches: int = Field(
-        ge=0, le=10000, description="training batches that re-estimate BatchNorm statistics before each validation "
-                                    "(0: off; at most 10000)")
-    device: Literal["auto", "cpu", "cuda"]
-    amp: bool
-    num_threads: int = Field(ge=1, le=1024, description="at most 1024, more cores than one machine has")
-    gam_channel_gate: Literal["sigmoid", "none"] = Field(
-        description="GAM channel branch: sigmoid-gated (ours) or ungated (the public code of study 000, "
-                    "needed by its published weights)")
-    width: int = Field(ge=1, le=512, description="channels of the first encoder stage (the paper: 64); every "
-                                                 "layer's channels and the head scale with it. At most 512: the "
-                                                 "weights grow with its square, 100 MB at 64 and 6.4 GB at 512")
-    kernels: Kernels = Field(
-        description="numerical kernels: portable (the same bytes on every x86 CPU with AVX2; one thread, "
-                    "no oneDNN) or native (each library's fastest code for this CPU)")
 
 
 class ToolReport(Group):

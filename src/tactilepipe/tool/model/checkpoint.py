@@ -6,7 +6,6 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
-from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -110,7 +109,7 @@ def settings_diff(ckpt: dict, cfg: TrainConfig, split: dict, data) -> dict:
         named = NAMED_ARCHITECTURES.get(old.get("variant"))
         old["architecture"] = named.as_dict() if named else None
     resumable = RESUMABLE_CHANGES - ({"max_epochs"} if cfg.lr_schedule == "cosine" else set())   # it sets the decay
-    diff = {k: (old.get(k), v) for k, v in asdict(cfg).items() if k not in resumable and old.get(k) != v}
+    diff = {k: (old.get(k), v) for k, v in cfg.model_dump().items() if k not in resumable and old.get(k) != v}
     if ckpt["meta"].get("split_fingerprint") != split_fingerprint(split):
         diff["split"] = ("another split", "this split")
     if ckpt["meta"].get("data_fingerprint") != data_fingerprint(data):

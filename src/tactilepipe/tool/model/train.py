@@ -22,7 +22,6 @@ from __future__ import annotations
 import math
 import sys
 import time
-from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -38,8 +37,6 @@ from tactilepipe.tool.model.kernels import check_mode, require_active
 from tactilepipe.tool.model.network import build_model, count_parameters
 from tactilepipe.tool.model.train_config import TrainConfig
 from tactilepipe.tool.model.variants import Architecture
-
-LR_SCHEDULES = ("constant", "cosine")
 
 
 # ----------------------------------------------------------------------------- label scaling
@@ -151,8 +148,6 @@ def _check_data(data, split: dict, cfg: TrainConfig) -> tuple[np.ndarray, np.nda
         raise TactilepipeError(f"dataset frames are {tuple(frames.shape[-2:])} px but the model is configured "
                                f"for image_size {cfg.image_size}")
     normalise(0.0, split["label_stats"], cfg.normalise)   # validates the mode
-    if cfg.lr_schedule not in LR_SCHEDULES:
-        raise ConfigError(f"unknown lr_schedule '{cfg.lr_schedule}' (one of {', '.join(LR_SCHEDULES)})")
     check_mode(cfg.kernels)          # the kernels against threads and device: train(), once the device is known
     return train_idx, val_idx
 
@@ -279,7 +274,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
             state["epoch"] = epoch
             if val_loss < state["best_val_loss"]:
                 state.update(best_val_loss=val_loss, best_epoch=epoch, bad_epochs=0)
-                save_checkpoint({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "config": asdict(cfg),
+                save_checkpoint({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "config": cfg.model_dump(),
                        "meta": {**meta, "epoch": epoch, "val_loss": val_loss, "val_mae_n": val_mae}}, best_path)
             else:
                 state["bad_epochs"] += 1
@@ -288,7 +283,7 @@ def train(data, split: dict, cfg: TrainConfig, out_dir: str | Path, progress: bo
             rng = {"torch": torch.get_rng_state(),
                    "cuda": torch.cuda.get_rng_state_all() if device.type == "cuda" else []}
             save_checkpoint({"format": CHECKPOINT_FORMAT, "model": model.state_dict(), "optimizer": opt.state_dict(),
-                   "scaler": scaler.state_dict(), "rng": rng, "config": asdict(cfg),
+                   "scaler": scaler.state_dict(), "rng": rng, "config": cfg.model_dump(),
                    "meta": {**meta, "epoch": epoch, "val_loss": val_loss, "val_mae_n": val_mae}, **state}, last_path)
             write_history(out_dir / "history.csv", state["history"])
             # one line per epoch whatever stderr is (a job's log under Snakemake): what a long run is doing
