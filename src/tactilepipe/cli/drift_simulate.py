@@ -1,5 +1,5 @@
 """Stage of the drift study: write the simulated drift session. Its cross-key checks are its sensor's
-(the workflow runs every study's: pipeline/studies.py)."""
+(the workflow runs every study's: tactilepipe/studies.py)."""
 
 from __future__ import annotations
 

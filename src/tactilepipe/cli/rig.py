@@ -12,7 +12,7 @@ from tactilepipe.rig.settings import BAUD, MODES
 from tactilepipe.tool import checks as tool_checks
 
 # the cross-key checks a stage runs on params.yaml by hand: its study's (the workflow runs every
-# study's: pipeline/studies.py)
+# study's: tactilepipe/studies.py)
 TOOL_CHECKS = (tool_checks.check,)
 
 CAMERA_HELP = "a /dev/video* node, the DIGIT's serial number (e.g. D20262), or a video file / image sequence " \

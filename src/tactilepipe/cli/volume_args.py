@@ -1,5 +1,5 @@
 """What the volume study's commands share: the cross-key checks a stage runs on params.yaml by hand
-(the study's own and its sensor's; the workflow runs every study's: pipeline/studies.py) and the
+(the study's own and its sensor's; the workflow runs every study's: tactilepipe/studies.py) and the
 data set and folds the model stages read."""
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ ConfigError) and handed to `resolve` / `load_params` as ``checks``. Core imports
 project, and a check here would be code of every stage: editing one study's check would re-run
 every stage of every study. Who runs which: a stage run by hand, its own study's (the
 ``checks=`` of its ``@command``, cli/registry.py); the workflow, ``tactilepipe diff`` and every
-other caller that validates a whole params.yaml, every study's (`tactilepipe.pipeline.studies`).
+other caller that validates a whole params.yaml, every study's (`tactilepipe.studies`).
 Without ``checks`` only the schema, the scale and finiteness are checked.
 """
 

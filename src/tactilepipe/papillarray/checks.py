@@ -1,6 +1,6 @@
 """The PapillArray sensor's cross-key parameter check: ``papillarray_axes`` maps each recorded axis
 once. The volume and drift stages (and ``papillarray-ingest``) run it by hand; the workflow runs
-every study's checks (pipeline/studies.py). Here, with the sensor, so that editing it re-runs
+every study's checks (tactilepipe/studies.py). Here, with the sensor, so that editing it re-runs
 the PapillArray stages only."""
 
 from __future__ import annotations

@@ -1,9 +1,10 @@
 """What made a scene's results: code, parameters, input sessions, packages, machine and commit.
 
-Written as ``provenance.json`` beside each scene's ``scores.json`` and tracked the same way, so
-`dvc metrics diff` between two commits shows, next to a number that moved, which of these moved
-with it. Run times are kept out of both (``runtime.json``): they change on every run and would
-bury the differences that matter; `dvc metrics diff --targets <scene>/runtime.json` shows them.
+Written as ``provenance.json`` beside each scene's ``scores.json`` and committed with it, so a diff
+of two commits shows, beside a number that moved, which of these moved with it (`tactilepipe diff`
+pairs draws by them). Run times are kept out of both (``runtime.json``): they change on every run
+and would bury the differences that matter; `dvc metrics diff --targets <scene>/runtime.json`
+shows them.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ against the threads and device they run on.
 
 Here, not in core/config.py, so that editing them re-runs the tool stages only (the code a stage
 runs is an input of its rule: pipeline/codedeps.py). A tool stage run by hand runs them (its
-``@command`` ``checks=``); the workflow runs every study's (pipeline/studies.py)."""
+``@command`` ``checks=``); the workflow runs every study's (tactilepipe/studies.py)."""
 
 from __future__ import annotations
 

@@ -4,7 +4,7 @@ simulator's friction and container).
 
 Here, not in core/config.py, so that editing them re-runs the volume stages only (the code a stage
 runs is an input of its rule: pipeline/codedeps.py). A volume stage run by hand runs them (its
-``@command`` ``checks=``); the workflow runs every study's (pipeline/studies.py)."""
+``@command`` ``checks=``); the workflow runs every study's (tactilepipe/studies.py)."""
 
 from __future__ import annotations
 
