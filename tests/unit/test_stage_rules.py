@@ -113,3 +113,24 @@ def test_a_report_item_of_a_declared_stage_has_its_label_and_its_studys_caption_
     assert rule.report_items("results/smoke") == {"out": ("results/smoke/volume/figures/folds.png",
                                                           "../report/volume/folds.rst", "figures",
                                                           {"result": "Lifts per fold"})}
+
+
+def test_every_rule_written_by_hand_says_why_beside_it():
+    """A rule in workflow/rules/ is a stage the declaration cannot describe yet, or a target list:
+    the comment right above it says which ("# By hand: <what the declaration cannot say>")."""
+    import re
+    from pathlib import Path
+    rules_dir = Path(__file__).resolve().parents[2] / "workflow" / "rules"
+    unexplained, found = [], 0
+    for path in sorted(rules_dir.glob("*.smk")):
+        text = path.read_text()
+        for m in re.finditer(r"^rule (\w+):$", text, flags=re.M):
+            found += 1
+            above = text[:m.start()].rstrip("\n").splitlines()
+            block = []
+            while above and above[-1].startswith("#"):
+                block.insert(0, above.pop())
+            first = block[0] if block else ""
+            if not (first.startswith("# By hand: ") and len(" ".join(block)) > 40 or first == "# A target list, not a stage."):
+                unexplained.append(f"{path.name}: rule {m.group(1)}")
+    assert found >= 1 and not unexplained, unexplained

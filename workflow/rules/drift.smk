@@ -1,6 +1,7 @@
 # Study 001's drift experiment: recordings every 5 min over 30 min -> drift curves and fits.
 
 
+# By hand: reads the session's shards, raw files and session.json, and the provenance stamps
 rule drift_report:
     input:
         shards=shards("drift"),

@@ -7,6 +7,7 @@ localrules:
     papillarray_ingest,
 
 
+# By hand: a job per recording of the session sheet ({scene}/{session}/{stem})
 rule papillarray_ingest:
     input:
         bag="raw/{scene}/{session}/{stem}.bag",

@@ -4,6 +4,7 @@
 REGIMES = f"{RESULTS}/volume_regimes"
 
 
+# By hand: its outputs come from params.yaml (a QC file per regime)
 rule volume_regimes:
     input:
         code=stage_code("volume-regimes"),

@@ -1,6 +1,8 @@
 # Embedded default data: simulated sessions (raw/<scene>/sim-<scale>/), written as real rigs do.
 
 
+# By hand: writes a session under raw/, outside the build's folder, from its scale's stamp; made
+#   in a loop, the simulators' rules changed their recorded commands (decision 0035)
 rule volume_simulate:
     input:
         code=stage_code("volume-simulate"),
@@ -21,6 +23,7 @@ rule volume_simulate:
         "{CLI} volume-simulate --stamp {input.params:q} --out-dir {params.out_dir:q} --labels --jobs {threads} 2> {log:q}"
 
 
+# By hand: writes a session under raw/ from its scale's stamp, as volume_simulate does
 rule drift_simulate:
     input:
         code=stage_code("drift-simulate"),

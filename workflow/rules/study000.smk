@@ -9,6 +9,8 @@ STUDY000 = f"{RESULTS}/study000"
 STUDY000_RUNS = ["full_public_frame", "full_trial"]
 
 
+# By hand: study000-table makes two rules (a stage declares one), and reads runs of the study's
+#   own run list
 rule study000_protocols:
     input:
         evals=expand(f"{RESULTS}/tool_normal/models/{{run}}/eval.json", run=STUDY000_RUNS),
@@ -28,6 +30,7 @@ rule study000_protocols:
         "{CLI} study000-table --stamp {input.params:q} --evals {input.evals:q} --out-dir {params.out_dir:q} 2> {log:q}"
 
 
+# By hand: reads the published weights under raw/downloads/, outside the build's folder
 rule study000_evaluate_published:
     input:
         checkpoint="raw/downloads/best_model_normal.pth",
@@ -49,6 +52,7 @@ rule study000_evaluate_published:
         "--data-dir {RESULTS}/tool_normal/data --all-frames --contaminated --out-dir {params.out_dir:q} > {log:q} 2>&1"
 
 
+# By hand: study000-table's second rule (see study000_protocols)
 rule study000_published:
     input:
         evaluation=rules.study000_evaluate_published.output.evaluation,

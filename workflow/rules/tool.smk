@@ -5,6 +5,8 @@
 SPLIT_NAME = "(frame|public_frame|trial|lopo)(_r[1-9][0-9]*)?|loto_[A-Za-z0-9_-]+"   # tool/data/splits.py; public_frame: study000.smk
 
 
+# By hand: writes a session under raw/, outside the build's folder, from its scale's stamp; made
+#   in a loop, the simulators' rules changed their recorded commands (decision 0035)
 rule tool_simulate:
     input:
         background=tool_background_frame(),
@@ -26,6 +28,8 @@ rule tool_simulate:
         "{CLI} tool-simulate --stamp {input.params:q} --out-dir {params.out_dir:q} --jobs {threads} 2> {log:q}"
 
 
+# By hand: a job per recording of the session sheet ({session}/{trial}), whose format, path and
+#   content stamp come from the sheet
 rule tool_ingest:
     input:
         trial=ingest_inputs,
@@ -45,6 +49,7 @@ rule tool_ingest:
         "{CLI} tool-ingest --stamp {input.params:q} {params.path:q} --format {params.fmt} --out {output:q} > {log:q} 2>&1"
 
 
+# By hand: a job per session, whose shards come from the session sheet
 rule tool_clock_figure:
     input:
         shards=lambda w: shards("tool", w.session),
@@ -61,6 +66,7 @@ rule tool_clock_figure:
         "{CLI} tool-clock-figure --shards {input.shards:q} --out {output.png:q} > {log:q} 2>&1"
 
 
+# By hand: a job per tool scene ({scene}), reading every shard the session sheet names
 rule tool_dataset:
     input:
         # every trial, either kind: the pressing trials give the session's camera latency, which
@@ -92,6 +98,8 @@ localrules:
     tool_split,
 
 
+# By hand: a job per split of a tool scene ({scene}/{split}), the split names drawn from
+#   params.yaml
 rule tool_split:
     input:
         samples=f"{RESULTS}/{{scene}}/data/samples.parquet",
@@ -113,6 +121,7 @@ rule tool_split:
         "--label {params.label} --out {output:q} 2> {log:q}"
 
 
+# By hand: a job per tool scene, reading the trials' raw files the session sheet names
 rule tool_data_report:
     input:
         data=rules.tool_dataset.output,
@@ -132,6 +141,7 @@ rule tool_data_report:
         "{CLI} tool-data-report --stamp {input.params:q} --scene {wildcards.scene} --in-dir {RESULTS}/{wildcards.scene} 2> {log:q}"
 
 
+# A target list, not a stage.
 rule tool_data:
     # the data stages of both tool scenes, without models (DVC stage tool_data)
     localrule: True
@@ -144,6 +154,7 @@ rule tool_data:
 # out each tool in turn, and the sweep (other depth / input size, for error against run time).
 
 
+# By hand: a job per run of the run list ({scene}/{run}), each with its own stamp (run_stamp)
 rule tool_train:
     # everything the job reads but its data and split is in its own stamp (run_stamp): the run's
     # variant, split name, depth and size, and the training settings
@@ -170,6 +181,8 @@ rule tool_train:
         "--split {input.split} --out-dir {RESULTS}/{wildcards.scene}/models/{wildcards.run} --quiet 2> {log:q}"
 
 
+# By hand: a job per tool scene, reading every run of the run list, the sessions' raw files and
+#   the provenance stamps
 rule tool_model_report:
     input:
         runs=lambda w: expand(f"{RESULTS}/{{scene}}/models/{{run}}/{{f}}", scene=w.scene, run=tool_runs(w.scene),

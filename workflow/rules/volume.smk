@@ -1,6 +1,7 @@
 # Study 001: off-table dataset -> folds -> MLP per modality, grid search, baseline -> report.
 
 
+# By hand: reads every shard and lifts.csv the session sheet names
 rule volume_dataset:
     input:
         shards=shards("volume"),
@@ -19,6 +20,7 @@ rule volume_dataset:
         "--qc {output.qc:q} 2> {log:q}"
 
 
+# By hand: a job per input modality ({modality}) of params.yaml
 rule volume_train:
     input:
         data=f"{VOLUME}/dataset.parquet",
@@ -39,6 +41,7 @@ rule volume_train:
         "--folds {input.folds:q} --out-dir {params.out_dir:q} 2> {log:q}"
 
 
+# By hand: reads the sessions' shards and raw files and the provenance stamps
 rule volume_report:
     input:
         mlp=expand(f"{VOLUME}/mlp/{{modality}}/{{f}}", modality=list(P["mlp"]["modalities"]),

@@ -11,8 +11,9 @@ it. An output named under ``report`` (its key -> the label the report lists it b
 stage is its module (function and declaration), its caption and its test; `make dvc.yaml`
 regenerates the DVC stages.
 
-Stages whose jobs come from sessions or runs (one per recording, per trained model) keep their
-rules in workflow/rules/, written by hand.
+Stages whose jobs come from sessions or runs (one per recording, per trained model), or that
+read or write outside the build's folder, keep their rules in workflow/rules/, written by hand;
+the comment above each says what the declaration cannot say for it ("# By hand: ...").
 """
 
 from __future__ import annotations
