@@ -1,8 +1,9 @@
 """Generate dvc.yaml from the Snakemake graph: `make dvc.yaml` (or `python workflow/scripts/dvc_yaml.py`).
 
 DVC and Snakemake must agree on what depends on what, so the DVC stages are derived from the jobs
-Snakemake plans, never written by hand. The only choices made here are the stages themselves:
-a name and the Snakemake targets its command builds (one stage per scene step). For each stage:
+Snakemake plans, never written by hand. The stages themselves, a name and the Snakemake targets
+its command builds, are the studies' (their contracts: each simulator's session, SIMULATED_MARK, and
+their scenes' DVC_STAGES). For each stage:
 - outs: the files its jobs write, each folded into the largest folder that holds nothing but
   this stage's outputs (a recording session at most under raw/); each scene's metrics/ folder is
   the metrics (the headline numbers only, a file per model: core/metric_rows.py), and
@@ -36,16 +37,13 @@ from tactilepipe.core.atomic import write_text
 from tactilepipe.core.metric_rows import FOLDER as METRICS_FOLDER
 from tactilepipe.core.errors import TactilepipeError
 from tactilepipe.core.yamlsafe import load_yaml_file
+from tactilepipe.studies import contracts
 
-STAGES = [  # (name, Snakemake targets); "{scale}" is written as DVC's ${scale}, "{results}" is the build's folder
-    ("volume_simulate", ["raw/volume/sim-{scale}/lifts.csv"]),
-    ("drift_simulate", ["raw/drift/sim-{scale}/session.json"]),
-    ("volume", ["volume"]),                 # a scene's rule: every file it ends in (pipeline/scenes.py)
-    ("drift", ["drift"]),
-    ("tool_simulate", ["raw/tool/sim-{scale}/nano17.cal"]),
-    ("tool_data", ["tool_data"]),
-    ("tool_models", ["tool_normal", "tool_shear"]),
-]
+# (name, Snakemake targets) of each DVC stage, from the studies' contracts: each simulator's session
+# (the file of it its contract names), then each study's stages of its scenes. "{scale}" is written as
+# DVC's ${scale}.
+STAGES = [(c.SIMULATOR.replace("-", "_"), [f"raw/{c.STUDY}/sim-{{scale}}/{c.SIMULATED_MARK}"]) for c in contracts().values()] + \
+    [(name, targets) for c in contracts().values() for name, targets in c.DVC_STAGES.items()]
 # a parameter stamp: a stage's or a training run's (params/tool-train/<run>.json; pipeline/stamp_keeper.py),
 # or a dry run's scratch copy of a changed one (changed-params/...)
 STAMP = re.compile(r"^(results/[^/]+/params|/.*/changed-params)/([^/]+/)?[^/]+\.json$")

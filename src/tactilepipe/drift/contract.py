@@ -16,6 +16,8 @@ STUDY = "drift"
 SIMULATOR = "drift-simulate"
 SCENES = {"drift": Scene("drift", ("papillarray-ingest", "drift-report"))}
 PLOT_DATA = ("drift_curves",)
+SIMULATED_MARK = SESSION_META       # the file of a simulated session its DVC stage asks for
+DVC_STAGES = {"drift": ["drift"]}
 # what the report stage writes under results/<build>/drift/ (drift/analyse.py), besides its metric rows
 OUTPUTS = ["scores.json", "provenance.json", "fits.md"] + figure_files("figures", ["drift_curves"], PLOT_DATA)
 REPORT_LABELS = {"fits": "Drift fits and recalibration interval", "drift_curves": "Drift with the fitted curves"}

@@ -16,6 +16,9 @@ SCENES = {name: Scene("tool", ("tool-ingest", "tool-dataset", "tool-split", "too
           for name in TOOL_SCENES}
 PLOT_DATA = ("error_vs_runtime", "intervals")
 CALIBRATION = "nano17.cal"          # a session's Nano17 calibration, shared by its trials
+SIMULATED_MARK = CALIBRATION       # the file of a simulated session its DVC stage asks for
+# the data of both scenes apart from their models: new recordings re-make the data in a stage of its own
+DVC_STAGES = {"tool_data": ["tool_data"], "tool_models": list(TOOL_SCENES)}
 DATA_FIGURES = ["force_histogram", "force_profiles", "rmse_vs_force", "pressing_strip"]
 REPORT_LABELS = {
     "qc": "Quality control of the data stages",

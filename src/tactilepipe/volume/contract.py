@@ -16,6 +16,8 @@ SCENES = {"volume": Scene("volume", ("papillarray-ingest", "volume-dataset", "vo
                                      "volume-gridsearch", "volume-baseline", "volume-report"))}
 PLOT_DATA = ("mu_r2_curve",)
 LABELS_FILE = "lifts.csv"          # a session's facts: each lift's bag and volume
+SIMULATED_MARK = LABELS_FILE       # the file of a simulated session its DVC stage asks for
+DVC_STAGES = {"volume": ["volume"]}
 # what the report stage writes under results/<build>/volume/ (volume/report.py), besides its metric rows
 OUTPUTS = ["scores.json", "provenance.json", "runtime.json"] + \
     [f"tables/{t}.md" for t in ("table1_r2", "table2_volumes", "unseen_volumes", "runtime", "grid_search")] + \
