@@ -8,13 +8,14 @@ difference into split composition, model seed and test sampling (tool/report/noi
 one table per scene: each component's standard deviation, the interval half-width of today's design
 (K repeats, one seed) and of designs with more repeats or seeds, and what a run costs.
 
-A second table asks what any design of this data size can decide, at the build's own mean difference
+A second table asks what any design of this data size decides, at the build's mean difference
 (its scores.json, all its repeats): the half-width's floor with endless repeats and seeds (the split
-term holds at least the test sampling: only more test trials shrink it), and the repeats K that
-decide the ordering with even odds (the interval just reaches the mean) and with 80 % power, with
-one seed per split and with seed noise removed (what endless seeds, an ensemble or weight averaging
-could at best do). The seed ensemble's own test sampling is measured too: the prediction of each
-split's seeds averaged, so an ensemble is not assumed to shrink that term.
+term holds at least the test sampling every seed shares, which only more test trials shrink; a
+run's own test sampling also holds its seed's errors on those trials, which an ensemble of the
+split's seeds thins, so the shared part is read from the two), and the repeats K that decide the
+ordering at even odds (the interval just reaches the mean) under the report's interval and under
+the components' model (the seed's share falling as 1/K), and with 80 % power with one seed per
+split or a prediction ensemble of the seeds.
 
 Needs a built scene (`make run`). Runs go to --work-dir and are reused when the script runs again.
     python studies/tool_models/study_noise.py [--scenes tool_normal tool_shear] [--splits 3] [--seeds 3] [--jobs 2]
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import subprocess
 import sys
 import time
@@ -33,12 +35,12 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-
-from tactilepipe.core.atomic import write_json
-from tactilepipe.tool.data.loader import ToolFrames
-from tactilepipe.tool.model.evaluate import linear_fit_predictions, tactile_rmse_features
 from scipy import stats
 
+from tactilepipe.core.atomic import write_json
+from tactilepipe.core.intervals import repeats_for_half_width
+from tactilepipe.tool.data.loader import ToolFrames
+from tactilepipe.tool.model.evaluate import linear_fit_predictions, tactile_rmse_features
 from tactilepipe.tool.report.noise import bootstrap_difference_variance, decompose, half_width
 from tactilepipe.tool.scenes import scene_label
 
@@ -107,8 +109,8 @@ def ensemble(runs: dict, variant: str, k: int, seeds: int) -> pd.DataFrame:
 
 
 def repeats_to_decide(need: float, var_split: float, var_seed: float, ratio: float, power: float) -> int | None:
-    """Fewest K (one seed each) whose t interval, widened by the power's z, fits inside ``need``;
-    None when none up to 1,000 does."""
+    """Fewest K whose t interval under the components' model, (1/K + ratio) var_split + var_seed/K,
+    widened by the power's z, fits inside ``need``; None when none up to 1,000 does."""
     if not need > 0:
         return None
     z = stats.norm.ppf(power) if power > 0.5 else 0.0
@@ -119,20 +121,31 @@ def repeats_to_decide(need: float, var_split: float, var_seed: float, ratio: flo
     return None
 
 
+def shared_test_variance(var_test_one: float, var_test_ensemble: float, seeds: int) -> float:
+    """The test sampling every seed shares. A run's bootstrap variance holds it plus the seeds' own
+    errors on those trials; an ensemble of ``seeds`` keeps 1/seeds of the latter, so the shared part
+    is (seeds v_ensemble - v_one) / (seeds - 1) (0 when that comes out negative)."""
+    return max(0.0, (seeds * var_test_ensemble - var_test_one) / (seeds - 1))
+
+
 def decidable(parts: dict, built: dict, var_test_ensemble: float, seeds: int) -> dict:
-    """What designs of this data size can decide, at the build's mean difference and margin: one model
-    per split, or an ensemble of ``seeds`` seeds per split (its seed noise taken as a 1/seeds share,
-    its test sampling as measured)."""
-    var_split = max(parts["var_split"], parts["var_test"])   # a split's term holds its test sampling
-    var_split_ens = var_split - parts["var_test"] + var_test_ensemble
+    """What designs of this data size can decide, at the build's mean difference and margin. The
+    split term is taken as at least the test sampling the seeds share (no seed design removes it);
+    K under the report's interval (all the spread widened by n_test/n_train, verdicts.power_line) and
+    under the components' model (the seed's share falling as 1/K), with one seed per split or an
+    ensemble of ``seeds`` (its seed variance a 1/seeds share)."""
+    shared = shared_test_variance(parts["var_test"], var_test_ensemble, seeds)
+    var_split = max(parts["var_split"], shared)
     ratio, mean, margin = parts["test_train_ratio"], abs(built["mae_difference"]), built["margin"]
-    need = max(mean, margin - mean)   # to exclude 0, or to fit inside the margin
-    z = stats.norm.ppf(0.975)
+    need = max(mean, margin - mean) if math.isfinite(margin) else mean   # exclude 0, or fit the margin
     return {"built_mean": built["mae_difference"], "built_verdict": built["verdict"], "need": need,
-            "floor": float(z * np.sqrt(ratio * var_split)), "floor_ensemble": float(z * np.sqrt(ratio * var_split_ens)),
+            "var_test_shared": shared,
+            "floor": float(stats.norm.ppf(0.975) * np.sqrt(ratio * var_split)),
+            "K_report": repeats_for_half_width(math.sqrt(var_split + parts["var_seed"]), need,
+                                               test_train_ratio=ratio),
             "K_even": repeats_to_decide(need, var_split, parts["var_seed"], ratio, 0.5),
             "K_80": repeats_to_decide(need, var_split, parts["var_seed"], ratio, 0.8),
-            "K_80_ensemble": repeats_to_decide(need, var_split_ens, parts["var_seed"] / seeds, ratio, 0.8)}
+            "K_80_ensemble": repeats_to_decide(need, var_split, parts["var_seed"] / seeds, ratio, 0.8)}
 
 
 def study_scene(args, scene: str, pool: ThreadPoolExecutor) -> dict:
@@ -180,14 +193,15 @@ def table(result: dict) -> str:
         lines.append(f"| {r['ordering']} | {r['mean']:+.3f} | " + " | ".join(f"{v:.3f}" for v in sd) + " | "
                      + " | ".join(f"{r[f'half_K{K}_M{M}']:.3f}" for K, M in DESIGNS) + " |")
     lines += ["", f"What any design of this data size decides, at the build's mean ({result['scene']}):", "",
-              "| ordering | built: mean diff (N), verdict | room to decide (N) | sd test: one model / ensemble | "
-              "floor ±: one model / ensemble | K, even odds | K, 80 % power | K, 80 % power, ensembles |",
-              "|---|---|---|---|---|---|---|---|"]
+              "| ordering | built: mean diff (N), verdict | room to decide (N) | sd test: one model / "
+              "ensemble / shared | floor ± (endless repeats and seeds) | K, even odds: report's interval / "
+              "seed share 1/K | K, 80 % power: one seed / ensembles |", "|---|---|---|---|---|---|---|"]
     for r in result["rows"]:
-        ks = [str(r[key]) if r[key] else "none" for key in ("K_even", "K_80", "K_80_ensemble")]
+        k = {key: str(r[key]) if r[key] else "none" for key in ("K_report", "K_even", "K_80", "K_80_ensemble")}
         lines.append(f"| {r['ordering']} | {r['built_mean']:+.3f}, {r['built_verdict']} | {r['need']:.3f} | "
-                     f"{np.sqrt(r['var_test']):.3f} / {np.sqrt(r['var_test_ensemble']):.3f} | "
-                     f"{r['floor']:.3f} / {r['floor_ensemble']:.3f} | " + " | ".join(ks) + " |")
+                     f"{np.sqrt(r['var_test']):.3f} / {np.sqrt(r['var_test_ensemble']):.3f} / "
+                     f"{np.sqrt(r['var_test_shared']):.3f} | {r['floor']:.3f} | {k['K_report']} / {k['K_even']} | "
+                     f"{k['K_80']} / {k['K_80_ensemble']} |")
     return "\n".join(lines)
 
 

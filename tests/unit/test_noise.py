@@ -86,12 +86,25 @@ def test_the_repeats_that_decide_are_the_fewest_whose_interval_fits_and_none_bel
     assert study.repeats_to_decide(0.0, var_split, var_seed, ratio, 0.5) is None
 
 
-def test_what_a_design_decides_takes_the_split_term_as_at_least_its_test_sampling():
+def test_the_shared_test_sampling_is_read_from_one_model_and_an_ensemble():
+    """One run's bootstrap variance is shared + own (its seed's errors on the trials); an ensemble of
+    M seeds keeps own / M: the shared part is (M v_ens - v_one) / (M - 1)."""
+    study = _study_noise()
+    shared, own, m = 0.0003, 0.0006, 3
+    assert study.shared_test_variance(shared + own, shared + own / m, m) == pytest.approx(shared)
+    assert study.shared_test_variance(0.001, 0.0001, 3) == 0.0            # noisier than possible: none
+
+
+def test_what_a_design_decides_keeps_the_shared_test_sampling_in_the_split_term():
     study = _study_noise()
     parts = {"var_split": 0.0, "var_seed": 0.0035, "var_test": 0.028 ** 2, "test_train_ratio": 0.25}
     built = {"mae_difference": -0.022, "margin": 0.036, "verdict": "undecided"}
     out = study.decidable(parts, built, var_test_ensemble=0.021 ** 2, seeds=3)
+    shared = (3 * 0.021 ** 2 - 0.028 ** 2) / 2
     assert out["need"] == pytest.approx(0.022)              # |mean| beats margin - |mean| = 0.014
-    assert out["floor"] == pytest.approx(1.96 * 0.5 * 0.028, rel=1e-3)
-    assert out["floor_ensemble"] == pytest.approx(1.96 * 0.5 * 0.021, rel=1e-3)
-    assert out["K_even"] is None and out["K_80"] is None    # the one-model floor 0.027 N is above 0.022 N
+    assert out["var_test_shared"] == pytest.approx(shared)
+    assert out["floor"] == pytest.approx(1.96 * math.sqrt(0.25 * shared), rel=1e-3)   # 0.016 N < 0.022 N
+    # under the report's interval the seed's variance keeps the floor too: out of reach at any K
+    assert out["K_report"] is None and out["K_even"] is not None and out["K_80"] is None
+    # no margin (no full model): only excluding zero decides
+    assert study.decidable(parts, {**built, "margin": math.nan}, 0.021 ** 2, 3)["need"] == pytest.approx(0.022)

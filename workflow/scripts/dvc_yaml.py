@@ -44,6 +44,8 @@ from tactilepipe.studies import contracts
 # DVC's ${scale}.
 STAGES = [(c.SIMULATOR.replace("-", "_"), [f"raw/{c.STUDY}/sim-{{scale}}/{c.SIMULATED_MARK}"]) for c in contracts().values()] + \
     [(name, targets) for c in contracts().values() for name, targets in c.DVC_STAGES.items()]
+if len({name for name, _ in STAGES}) != len(STAGES):
+    raise SystemExit(f"two studies' contracts name the same DVC stage: {[name for name, _ in STAGES]}")
 # a parameter stamp: a stage's or a training run's (params/tool-train/<run>.json; pipeline/stamp_keeper.py),
 # or a dry run's scratch copy of a changed one (changed-params/...)
 STAMP = re.compile(r"^(results/[^/]+/params|/.*/changed-params)/([^/]+/)?[^/]+\.json$")

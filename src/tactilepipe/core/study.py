@@ -8,7 +8,8 @@ package, not pipeline/. A contract module defines:
 - ``STUDY``: its folder under raw/ (raw/<study>/<session>/) and the sessions key of params.yaml;
 - ``SIMULATOR``: the stage that writes a simulated session (``sim-<scale>``), and ``SIMULATED_MARK``,
   the file of such a session that DVC's stage of the simulator asks Snakemake for;
-- ``DVC_STAGES``: {DVC stage: Snakemake targets} of its scenes (workflow/scripts/dvc_yaml.py);
+- ``DVC_STAGES``: {DVC stage: Snakemake targets} of its scenes (workflow/scripts/dvc_yaml.py), in
+  order: a job belongs to the first stage whose targets need it (a study's data before its models);
 - ``SCENES``: {scene: Scene}, the scenes it builds and the stages that make their numbers;
 - ``PLOT_DATA``: the figures written with their data beside them (<figure>.csv), drawn by DVC;
 - ``REPORT_LABELS``: what `snakemake --report` calls each item (by file stem);
