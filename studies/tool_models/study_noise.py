@@ -38,7 +38,7 @@ import pandas as pd
 from scipy import stats
 
 from tactilepipe.core.atomic import write_json
-from tactilepipe.core.intervals import repeats_for_half_width
+from tactilepipe.core.intervals import half_width as interval_half_width, repeats_for_half_width
 from tactilepipe.tool.data.loader import ToolFrames
 from tactilepipe.tool.model.evaluate import linear_fit_predictions, tactile_rmse_features
 from tactilepipe.tool.report.noise import bootstrap_difference_variance, decompose, half_width
@@ -109,14 +109,16 @@ def ensemble(runs: dict, variant: str, k: int, seeds: int) -> pd.DataFrame:
 
 
 def repeats_to_decide(need: float, var_split: float, var_seed: float, ratio: float, power: float) -> int | None:
-    """Fewest K whose t interval under the components' model, (1/K + ratio) var_split + var_seed/K,
-    widened by the power's z, fits inside ``need``; None when none up to 1,000 does."""
+    """Fewest K (one seed, or one ensemble, per split) whose interval under the components' model
+    (tool/report/noise.py half_width), widened by the power's z, fits inside ``need``; None when none
+    up to 1,000 does."""
     if not need > 0:
         return None
+    parts = {"var_split": var_split, "var_seed": var_seed, "test_train_ratio": ratio}
     z = stats.norm.ppf(power) if power > 0.5 else 0.0
     for k in range(2, 1001):
-        se = np.sqrt((1 / k + ratio) * var_split + var_seed / k)
-        if (stats.t.ppf(0.975, k - 1) + z) * se <= need:
+        h = half_width(parts, k, 1)                      # t(0.975, K - 1) x standard error
+        if h * (1 + z / stats.t.ppf(0.975, k - 1)) <= need:
             return k
     return None
 
@@ -140,7 +142,7 @@ def decidable(parts: dict, built: dict, var_test_ensemble: float, seeds: int) ->
     need = max(mean, margin - mean) if math.isfinite(margin) else mean   # exclude 0, or fit the margin
     return {"built_mean": built["mae_difference"], "built_verdict": built["verdict"], "need": need,
             "var_test_shared": shared,
-            "floor": float(stats.norm.ppf(0.975) * np.sqrt(ratio * var_split)),
+            "floor": interval_half_width(math.sqrt(var_split), math.inf, test_train_ratio=ratio),
             "K_report": repeats_for_half_width(math.sqrt(var_split + parts["var_seed"]), need,
                                                test_train_ratio=ratio),
             "K_even": repeats_to_decide(need, var_split, parts["var_seed"], ratio, 0.5),
